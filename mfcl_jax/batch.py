@@ -1,0 +1,137 @@
+"""The padded batches that cross module boundaries.
+
+Data flows one way: simulator or dataset reader -> ``SubmapBatch`` + ``RunBatch`` (+ ``Truth``,
+kept apart and used only to score) -> front-end -> ``Candidates`` -> decision layer.
+All are JAX pytrees of arrays padded on the host; every ragged axis has a boolean mask.
+
+Shapes: ``N`` submaps (all runs stacked), ``P`` points per submap (capacity bucket), ``R`` runs,
+``K`` windows per run (max), ``T`` trajectory samples per run (max), ``J`` candidates per submap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import jax
+import numpy as np
+
+__all__ = ["SubmapBatch", "RunBatch", "Truth", "Candidates", "REASONS", "bucket"]
+
+
+def _register(cls, meta=()):
+    data = [f.name for f in fields(cls) if f.name not in meta]
+    jax.tree_util.register_dataclass(cls, data_fields=data, meta_fields=list(meta))
+    return cls
+
+
+def bucket(n: int, minimum: int = 256) -> int:
+    """Capacity bucket: the next power of two >= ``n`` (at least ``minimum``)."""
+    cap = minimum
+    while cap < n:
+        cap *= 2
+    return cap
+
+
+@dataclass(frozen=True)
+class SubmapBatch:
+    """Submaps of every run stacked on one axis.
+
+    Attributes:
+        points: ``(N, P, 2)`` float32 points in the submap frame ``S_i``.
+        origins: ``(N, P, 2)`` float32 sensor position (in ``S_i``) when each point was measured,
+            so the ray origin -> point is known free space.
+        mask: ``(N, P)`` bool, valid points.
+        X: ``(N, 3)`` float32 ``^L T_{S_i}`` from odometry.
+        run: ``(N,)`` int32 run index.
+        window: ``(N,)`` int32 window index ``k - 1`` within the run (0-based).
+        t: ``(N,)`` float64 time stamp of the window's last scan (s).
+        n_dropped: ``(N,)`` int32 points dropped on the host (NaN/inf or over capacity).
+    """
+
+    points: jax.Array
+    origins: jax.Array
+    mask: jax.Array
+    X: jax.Array
+    run: jax.Array
+    window: jax.Array
+    t: jax.Array
+    n_dropped: jax.Array
+
+    @property
+    def n(self) -> int:
+        return int(self.points.shape[0])
+
+
+@dataclass(frozen=True)
+class RunBatch:
+    """Per-run trajectories and windows, for the gate and the prefix masks.
+
+    Attributes:
+        traj: ``(R, T, 3)`` odometry poses ``^L T_t`` of the scans (sensor poses in L).
+        traj_t: ``(R, T)`` float64 scan time stamps.
+        traj_mask: ``(R, T)`` bool.
+        window_end: ``(R, K)`` int32 index into ``traj`` of window k's last scan.
+        window_mask: ``(R, K)`` bool, valid windows.
+        submap: ``(R, K)`` int32 row of ``SubmapBatch`` holding window k (-1 where padded).
+    """
+
+    traj: jax.Array
+    traj_t: jax.Array
+    traj_mask: jax.Array
+    window_end: jax.Array
+    window_mask: jax.Array
+    submap: jax.Array
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.traj.shape[0])
+
+    @property
+    def n_windows(self) -> int:
+        return int(self.window_mask.shape[1])
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Ground truth, for scoring only: never passed to the front-end or decision layer.
+
+    Attributes:
+        traj: ``(R, T, 3)`` true sensor poses ``^B T_t`` aligned with ``RunBatch.traj``.
+        anchor: ``(R, 3)`` the hidden ``^B T_L`` at the start of each run.
+        Y: ``(N, 3)`` true ``^B T_{S_i}`` per submap.
+    """
+
+    traj: np.ndarray
+    anchor: np.ndarray
+    Y: np.ndarray
+
+
+# Why a submap produced no candidates (Candidates.reason); the decision layer reports DEFER.
+REASONS = {
+    0: "ok",
+    1: "empty submap",
+    2: "too few points",
+    3: "no features",
+    4: "no walls in floor plan",
+}
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Front-end output: top-J scored candidates per submap.
+
+    Attributes:
+        pose: ``(N, J, 3)`` float32 ``Y_ij = ^B T_{S_i}``.
+        score: ``(N, J)`` float32 verification score (higher is better).
+        mask: ``(N, J)`` bool, valid candidates.
+        reason: ``(N,)`` int32 key of ``REASONS`` (0 when candidates exist).
+    """
+
+    pose: jax.Array
+    score: jax.Array
+    mask: jax.Array
+    reason: jax.Array
+
+
+for _cls in (SubmapBatch, RunBatch, Candidates):
+    _register(_cls)

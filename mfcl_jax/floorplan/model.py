@@ -1,0 +1,279 @@
+"""The floor-plan model: walls, named rooms, doors and the room graph they induce.
+
+Host-side and immutable (NumPy + shapely). Kernels never see this object: they see the
+``Rasters`` built from it (``mfcl_jax.floorplan.raster``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.ops import unary_union
+
+__all__ = ["FloorplanError", "Room", "Door", "Floorplan", "DEFAULT_WALL_THICKNESS"]
+
+DEFAULT_WALL_THICKNESS = 0.15
+# A door must come this close (m) to a room's polygon to count as touching it; rooms are
+# usually drawn to the wall faces, doors across the wall centre line.
+DOOR_TOUCH_TOL = 0.5
+
+
+class FloorplanError(ValueError):
+    """A floor plan that cannot be used; the message names the source and the feature."""
+
+
+@dataclass(frozen=True)
+class Room:
+    """A named room footprint."""
+
+    name: str
+    polygon: Polygon
+
+
+@dataclass(frozen=True)
+class Door:
+    """A door: a segment across the opening ``(2, 2)`` and the rooms it joins (one or two)."""
+
+    segment: np.ndarray
+    rooms: tuple[str, ...]
+
+
+def _finite(a) -> bool:
+    return bool(np.all(np.isfinite(np.asarray(a, dtype=float))))
+
+
+@dataclass(frozen=True, eq=False)
+class Floorplan:
+    """A 2D building model in frame B (metres).
+
+    Attributes:
+        walls: wall centre-line segments ``(W, 2, 2)``.
+        thickness: wall thickness per segment ``(W,)``.
+        wall_polygons: walls given directly as footprints (IFC cuts, GeoJSON polygons).
+        rooms: named room polygons.
+        doors: doors with the rooms they join.
+        name: a short name for plots and tables.
+        source: where it came from (a file path), used in error messages.
+    """
+
+    walls: np.ndarray
+    thickness: np.ndarray
+    rooms: tuple[Room, ...]
+    doors: tuple[Door, ...] = ()
+    wall_polygons: tuple[Polygon, ...] = ()
+    name: str = "floorplan"
+    source: str = "<memory>"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        walls = np.asarray(self.walls, dtype=np.float64).reshape(-1, 2, 2)
+        thick = np.broadcast_to(
+            np.asarray(self.thickness, dtype=np.float64), (walls.shape[0],)
+        ).copy()
+        object.__setattr__(self, "walls", walls)
+        object.__setattr__(self, "thickness", thick)
+        object.__setattr__(self, "rooms", tuple(self.rooms))
+        object.__setattr__(self, "doors", tuple(self.doors))
+        object.__setattr__(self, "wall_polygons", tuple(self.wall_polygons))
+        self._validate()
+
+    # ------------------------------------------------------------------ validation
+    def _fail(self, what: str) -> None:
+        raise FloorplanError(f"{self.source}: {what}")
+
+    def _validate(self) -> None:
+        if not self.rooms:
+            self._fail("floor plan has no rooms (need at least one 'room' polygon)")
+        if self.walls.shape[0] == 0 and not self.wall_polygons:
+            self._fail("floor plan has no walls")
+        for i, (seg, t) in enumerate(zip(self.walls, self.thickness, strict=True)):
+            if not _finite(seg):
+                self._fail(f"wall #{i}: non-finite coordinates {seg.tolist()}")
+            if not (np.isfinite(t) and t > 0):
+                self._fail(f"wall #{i}: thickness must be a positive number, got {t!r}")
+            if np.linalg.norm(seg[1] - seg[0]) <= 1e-9:
+                self._fail(f"wall #{i}: zero-length segment at {seg[0].tolist()}")
+        for i, poly in enumerate(self.wall_polygons):
+            if not _finite(np.asarray(poly.exterior.coords)):
+                self._fail(f"wall polygon #{i}: non-finite coordinates")
+            if not poly.is_valid:
+                self._fail(f"wall polygon #{i}: invalid polygon ({shapely.is_valid_reason(poly)})")
+        names = set()
+        for room in self.rooms:
+            if not isinstance(room.polygon, Polygon):
+                self._fail(f"room {room.name!r}: geometry must be a Polygon")
+            if not _finite(np.asarray(room.polygon.exterior.coords)):
+                self._fail(f"room {room.name!r}: non-finite coordinates")
+            if not room.polygon.is_valid:
+                reason = shapely.is_valid_reason(room.polygon)
+                self._fail(f"room {room.name!r}: invalid polygon ({reason})")
+            if room.polygon.area <= 0:
+                self._fail(f"room {room.name!r}: polygon has zero area")
+            if room.name in names:
+                self._fail(f"room {room.name!r}: duplicate room name")
+            names.add(room.name)
+        for i, door in enumerate(self.doors):
+            seg = np.asarray(door.segment, dtype=float)
+            if seg.shape != (2, 2) or not _finite(seg):
+                self._fail(f"door #{i}: segment must be two finite points, got {seg.tolist()}")
+            if not 1 <= len(door.rooms) <= 2:
+                self._fail(f"door #{i}: must join one or two rooms, got {list(door.rooms)}")
+            for r in door.rooms:
+                if r not in names:
+                    self._fail(f"door #{i}: names unknown room {r!r}")
+                d = self.room(r).polygon.distance(LineString(seg))
+                if d > DOOR_TOUCH_TOL:
+                    self._fail(f"door #{i}: does not touch room {r!r} (it is {d:.2f} m away)")
+
+    # ------------------------------------------------------------------ lookup
+    @property
+    def room_names(self) -> tuple[str, ...]:
+        return tuple(r.name for r in self.rooms)
+
+    def room(self, name: str) -> Room:
+        for r in self.rooms:
+            if r.name == name:
+                return r
+        raise KeyError(f"{self.source}: no room named {name!r}; rooms are {self.room_names}")
+
+    def room_index(self, name: str) -> int:
+        return self.room_names.index(name)
+
+    @cached_property
+    def adjacency(self) -> np.ndarray:
+        """Room graph ``(R, R)`` bool: rooms joined by a door (diagonal True)."""
+        n = len(self.rooms)
+        adj = np.eye(n, dtype=bool)
+        for door in self.doors:
+            if len(door.rooms) == 2:
+                a, b = (self.room_index(r) for r in door.rooms)
+                adj[a, b] = adj[b, a] = True
+        return adj
+
+    # ------------------------------------------------------------------ geometry
+    @cached_property
+    def wall_solid(self) -> Polygon | MultiPolygon:
+        """Union of all wall footprints (segments buffered by half their thickness)."""
+        # Square caps close L-junctions between centre lines (they extend each end by t/2).
+        parts = [
+            LineString(seg).buffer(t / 2.0, cap_style="square", join_style="mitre")
+            for seg, t in zip(self.walls, self.thickness, strict=True)
+        ]
+        return unary_union(parts + list(self.wall_polygons))
+
+    @cached_property
+    def footprint(self) -> Polygon | MultiPolygon:
+        """The inside of the building: rooms and walls, holes filled."""
+        merged = unary_union([r.polygon for r in self.rooms] + [self.wall_solid])
+        polys = merged.geoms if isinstance(merged, MultiPolygon) else [merged]
+        return unary_union([Polygon(p.exterior) for p in polys])
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(xmin, ymin, xmax, ymax)`` of the footprint."""
+        return tuple(float(v) for v in self.footprint.bounds)
+
+    @cached_property
+    def wall_faces(self) -> np.ndarray:
+        """Wall surface segments ``(F, 2, 2)``: the boundary of the wall solid."""
+        return _boundary_segments(self.wall_solid)
+
+    @cached_property
+    def corners(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall-surface corners with their two edge directions.
+
+        Returns:
+            ``(points (C, 2), directions (C, 2))``: each corner's position and the angles (rad)
+            of its two boundary edges, pointing away from the corner. Near-straight vertices
+            (within 20 deg of 180) are dropped.
+        """
+        pts, dirs = [], []
+        for ring in _rings(self.wall_solid):
+            xy = np.asarray(ring.coords)[:-1]
+            n = len(xy)
+            for i in range(n):
+                p, a, b = xy[i], xy[i - 1], xy[(i + 1) % n]
+                da, db = a - p, b - p
+                if np.linalg.norm(da) < 1e-6 or np.linalg.norm(db) < 1e-6:
+                    continue
+                ang_a, ang_b = math.atan2(da[1], da[0]), math.atan2(db[1], db[0])
+                between = abs((ang_a - ang_b + math.pi) % (2 * math.pi) - math.pi)
+                if between > math.radians(160):
+                    continue
+                pts.append(p)
+                dirs.append((ang_a, ang_b))
+        return np.asarray(pts, float).reshape(-1, 2), np.asarray(dirs, float).reshape(-1, 2)
+
+    @cached_property
+    def room_centroids(self) -> np.ndarray:
+        """Room centroids ``(R, 2)``."""
+        return np.asarray([[r.polygon.centroid.x, r.polygon.centroid.y] for r in self.rooms])
+
+    @cached_property
+    def room_areas(self) -> np.ndarray:
+        return np.asarray([r.polygon.area for r in self.rooms])
+
+    def room_at(self, xy) -> list[str | None]:
+        """Room names at points ``(N, 2)`` (None outside every room)."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        out: list[str | None] = [None] * len(xy)
+        for r in reversed(self.rooms):
+            inside = shapely.contains_xy(r.polygon, xy[:, 0], xy[:, 1])
+            for i in np.flatnonzero(inside):
+                out[i] = r.name
+        return out
+
+    def transformed(self, pose) -> Floorplan:
+        """The same floor plan moved by a rigid motion ``pose = (x, y, theta)``."""
+        x, y, th = (float(v) for v in pose)
+        c, s = math.cos(th), math.sin(th)
+
+        def tf(p):
+            p = np.asarray(p, float)
+            return np.stack([c * p[..., 0] - s * p[..., 1] + x, s * p[..., 0] + c * p[..., 1] + y], -1)
+
+        def tf_geom(g):
+            return shapely.transform(g, lambda q: tf(q))
+
+        return Floorplan(
+            walls=tf(self.walls),
+            thickness=self.thickness,
+            rooms=tuple(Room(r.name, tf_geom(r.polygon)) for r in self.rooms),
+            doors=tuple(Door(tf(d.segment), d.rooms) for d in self.doors),
+            wall_polygons=tuple(tf_geom(p) for p in self.wall_polygons),
+            name=self.name,
+            source=self.source,
+        )
+
+    def rasterize(self, res: float = 0.10, margin: float = 1.0):
+        """Rasters of this floor plan (see ``mfcl_jax.floorplan.raster.rasterize``)."""
+        from mfcl_jax.floorplan.raster import rasterize
+
+        key = (float(res), float(margin))
+        if key not in self._cache:
+            self._cache[key] = rasterize(self, res=res, margin=margin)
+        return self._cache[key]
+
+
+def _rings(geom) -> list:
+    polys = geom.geoms if isinstance(geom, MultiPolygon) else [geom]
+    rings = []
+    for p in polys:
+        if p.is_empty:
+            continue
+        rings.append(p.exterior)
+        rings.extend(p.interiors)
+    return rings
+
+
+def _boundary_segments(geom) -> np.ndarray:
+    segs = []
+    for ring in _rings(geom):
+        xy = np.asarray(ring.coords)
+        segs.extend(np.stack([xy[:-1], xy[1:]], axis=1))
+    return np.asarray(segs, float).reshape(-1, 2, 2)

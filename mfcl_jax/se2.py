@@ -1,7 +1,7 @@
 """SE(2) algebra on stacked poses.
 
 A pose is one array type throughout the project: a float array of shape ``(*, 3)`` holding
-``(x, y, theta)`` with ``theta`` in radians, wrapped to ``(-pi, pi]``. Every function broadcasts
+``(x, y, theta)`` with ``theta`` in radians, wrapped to ``[-pi, pi]``. Every function broadcasts
 over leading axes, is pure, and is safe under ``jit``/``vmap``. Accepts NumPy or JAX arrays and
 returns JAX arrays.
 
@@ -33,7 +33,7 @@ __all__ = [
 
 
 def wrap(theta):
-    """Wraps angles to ``(-pi, pi]``.
+    """Wraps angles to ``[-pi, pi]``.
 
     Args:
         theta: angles in radians, any shape.
@@ -42,13 +42,13 @@ def wrap(theta):
         The same angles wrapped, same shape.
     """
     theta = jnp.asarray(theta)
-    wrapped = jnp.arctan2(jnp.sin(theta), jnp.cos(theta))
-    # arctan2 returns -pi for some inputs that are +pi; keep the half-open interval (-pi, pi].
-    return jnp.where(wrapped <= -jnp.pi, wrapped + 2 * jnp.pi, wrapped)
+    # atan2 of (sin, cos) is exact to rounding and has no branch; +-pi are the same angle and
+    # either may come back for inputs within float rounding of the cut.
+    return jnp.arctan2(jnp.sin(theta), jnp.cos(theta))
 
 
 def angle_diff(a, b):
-    """Wrapped difference ``a - b`` in ``(-pi, pi]``."""
+    """Wrapped difference ``a - b`` in ``[-pi, pi]``."""
     return wrap(jnp.asarray(a) - jnp.asarray(b))
 
 
@@ -136,7 +136,7 @@ def circular_mean(theta, weights=None, axis=-1):
         axis: axis to reduce.
 
     Returns:
-        The mean angle in ``(-pi, pi]``. With all weights zero the result is 0.
+        The mean angle in ``[-pi, pi]``. With all weights zero the result is 0.
     """
     theta = jnp.asarray(theta)
     w = jnp.ones_like(theta) if weights is None else jnp.broadcast_to(weights, theta.shape)

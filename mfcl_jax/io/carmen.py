@@ -1,0 +1,121 @@
+"""CARMEN logs: ``FLASER n r1..rn x y theta odom_x odom_y odom_theta timestamp host logger_t``.
+
+The ``x y theta`` of a FLASER line is the laser pose of the log (SLAM-corrected in the
+``*-corrected`` logs). Beams span a 180 deg field of view, centred on the sensor's x axis:
+an odd count ``n`` places the first and last beams at -90 and +90 deg (step ``180/(n-1)``),
+an even count steps ``180/n`` from -90 deg (the classic 180-beam, 1 deg scanner).
+Readings at or beyond ``max_range`` (no return; CARMEN writes 81.91 or similar) or <= 0 are
+dropped. Plain or gzip-compressed files.
+"""
+
+from __future__ import annotations
+
+import gzip
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mfcl_jax.io.errors import DataError
+
+__all__ = ["CarmenLog", "read_carmen", "beam_angles"]
+
+
+@dataclass(frozen=True, eq=False)
+class CarmenLog:
+    """Laser scans of a CARMEN log.
+
+    Attributes:
+        times: ``(N,)`` FLASER timestamps (s).
+        scans: ``N`` arrays ``(n_i, 2)``, points in the sensor frame (m).
+        poses: ``(N, 3)`` the FLASER laser poses ``(x, y, theta)``.
+        odometry: ``(N, 3)`` the FLASER odometry poses (equal to ``poses`` in corrected logs).
+        time_reversals: how many FLASER timestamps are earlier than the one before (real
+            logs have a few; the lines stay in file order).
+    """
+
+    times: np.ndarray
+    scans: list[np.ndarray]
+    poses: np.ndarray
+    odometry: np.ndarray
+    time_reversals: int = 0
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+
+def beam_angles(n: int, fov: float = math.pi) -> np.ndarray:
+    """Angles (rad) of ``n`` beams over ``fov`` centred on the x axis (see module doc)."""
+    step = fov / (n - 1) if n % 2 == 1 else fov / n
+    return -fov / 2 + step * np.arange(n)
+
+
+def read_carmen(
+    path, max_range: float = 50.0, fov: float = math.pi, strict_time: bool = False
+) -> CarmenLog:
+    """Reads the FLASER lines of a CARMEN log (``.log`` or ``.log.gz``).
+
+    Args:
+        path: the log.
+        max_range: readings at or beyond this (m) are no-returns.
+        fov: field of view (rad) of the beams.
+        strict_time: raise on a timestamp earlier than the previous one; otherwise such
+            lines are kept in file order and counted in ``time_reversals``.
+
+    Raises:
+        DataError: missing file, a FLASER line with too few fields or non-numbers, times that
+            go backwards (``strict_time``), or a log without FLASER lines (each names the file
+            and line).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: file not found")
+    opener = gzip.open if path.suffix == ".gz" else open
+    times, scans, poses, odom = [], [], [], []
+    reversals = 0
+    angles: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    try:
+        with opener(path, "rt") as fh:
+            for no, line in enumerate(fh, 1):
+                if not line.startswith("FLASER"):
+                    continue
+                cols = line.split()
+                try:
+                    n = int(cols[1])
+                    vals = np.asarray(cols[2 : 2 + n + 7], float)
+                except (ValueError, IndexError):
+                    raise DataError(f"{path}:{no}: malformed FLASER line") from None
+                if n < 2 or len(vals) != n + 7:
+                    raise DataError(
+                        f"{path}:{no}: FLASER with n={n} needs {n + 7} numbers after n, "
+                        f"got {len(vals)}"
+                    )
+                if not np.all(np.isfinite(vals[n:])):
+                    raise DataError(f"{path}:{no}: non-finite pose or timestamp")
+                t = float(vals[n + 6])
+                if times and t < times[-1]:
+                    if strict_time:
+                        raise DataError(f"{path}:{no}: timestamp {t} before previous {times[-1]}")
+                    reversals += 1
+                if n not in angles:
+                    a = beam_angles(n, fov)
+                    angles[n] = (np.cos(a), np.sin(a))
+                c, s = angles[n]
+                r = vals[:n]
+                ok = np.isfinite(r) & (r > 0) & (r < max_range)
+                scans.append(np.stack([r[ok] * c[ok], r[ok] * s[ok]], -1))
+                poses.append(vals[n : n + 3])
+                odom.append(vals[n + 3 : n + 6])
+                times.append(t)
+    except (OSError, EOFError, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: cannot read ({e})") from None
+    if not times:
+        raise DataError(f"{path}: no FLASER lines")
+    return CarmenLog(
+        np.asarray(times),
+        scans,
+        np.asarray(poses).reshape(-1, 3),
+        np.asarray(odom).reshape(-1, 3),
+        reversals,
+    )

@@ -1,0 +1,69 @@
+"""Decisions as JSON lines (ARCHITECTURE.md): one object per submap window."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from mfcl_jax.io.errors import DataError, atomic_write_text
+
+__all__ = ["write_decisions", "read_decisions", "STATES", "SYMMETRIES"]
+
+STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
+SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
+_KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
+
+
+def _check(where: str, d: dict) -> dict:
+    missing = [k for k in _KEYS if k not in d]
+    if missing:
+        raise DataError(f"{where}: missing keys {missing}")
+    if d["state"] not in STATES:
+        raise DataError(f"{where}: state={d['state']!r}, expected one of {STATES}")
+    if d["symmetry"] not in SYMMETRIES:
+        raise DataError(f"{where}: symmetry={d['symmetry']!r}, expected one of {SYMMETRIES}")
+    a = d["anchor"]
+    if a is not None:
+        if not isinstance(a, dict) or set(a) != {"x", "y", "yaw_deg"}:
+            raise DataError(f"{where}: anchor={a!r}, expected {{x, y, yaw_deg}} or null")
+        if not all(isinstance(a[k], int | float) and math.isfinite(a[k]) for k in a):
+            raise DataError(f"{where}: anchor={a!r} has a non-finite value")
+    if d["state"] == "COMMIT" and a is None:
+        raise DataError(f"{where}: a COMMIT needs an anchor")
+    tau = d["tau"]
+    if tau is not None and (not isinstance(tau, list) or len(tau) != 2):
+        raise DataError(f"{where}: tau={tau!r}, expected [tx, ty] or null")
+    return d
+
+
+def write_decisions(path, decisions) -> Path:
+    """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin``)
+    as JSON lines, validated first and written atomically (all or nothing)."""
+    path = Path(path)
+    lines = []
+    for i, d in enumerate(decisions):
+        d = _check(f"{path}: decision #{i}", dict(d))
+        lines.append(json.dumps({k: d[k] for k in _KEYS}, allow_nan=False))
+    return atomic_write_text(path, "\n".join(lines) + ("\n" if lines else ""))
+
+
+def read_decisions(path) -> list[dict]:
+    """Reads and validates a decisions JSON-lines file (errors name the file and line)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DataError(f"{path}: file not found") from None
+    out = []
+    for no, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            d = json.loads(line)
+        except json.JSONDecodeError as e:
+            raise DataError(f"{path}:{no}: not valid JSON ({e})") from None
+        if not isinstance(d, dict):
+            raise DataError(f"{path}:{no}: expected a JSON object")
+        out.append(_check(f"{path}:{no}", d))
+    return out

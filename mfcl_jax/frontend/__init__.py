@@ -1,1 +1,22 @@
-"""frontend."""
+"""Registration front-end: pose Hough transform over wall corners, occupancy-aware
+verification, continuous refinement; plus a CSV adapter for external front-ends."""
+
+from mfcl_jax.frontend.registry import (
+    FloorplanFeatures,
+    FrontendParams,
+    build_features,
+    load_candidates_csv,
+    make_register,
+    register,
+    sanitize_submaps,
+)
+
+__all__ = [
+    "FloorplanFeatures",
+    "FrontendParams",
+    "build_features",
+    "load_candidates_csv",
+    "make_register",
+    "register",
+    "sanitize_submaps",
+]

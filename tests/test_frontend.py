@@ -1,0 +1,180 @@
+"""Front-end tests: registration, equivariance, symmetry, jit, traces, bad inputs, CSV."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from _frontend_synth import batch, make_submap
+from shapely.geometry import box
+
+from mfcl_jax import se2
+from mfcl_jax.batch import SubmapBatch
+from mfcl_jax.floorplan.model import Door, Floorplan, Room
+from mfcl_jax.floorplan.raster import Rasters, pad_to
+from mfcl_jax.floorplan.scenes import get_scene
+from mfcl_jax.frontend import (
+    FrontendParams,
+    build_features,
+    load_candidates_csv,
+    make_register,
+    register,
+    registry,
+    sanitize_submaps,
+)
+from mfcl_jax.frontend.features import floorplan_corners
+
+N, P = 4, 2048
+SHAPE = (200, 360)  # common raster bucket: one compilation for every test floor plan
+PARAMS = FrontendParams()
+REG = make_register(PARAMS)
+
+
+def asym_plan() -> Floorplan:
+    """Two rooms of different size, one L-shaped, joined by a door (no symmetry)."""
+    walls = [
+        [[0, 0], [16, 0]], [[16, 0], [16, 8]], [[16, 8], [0, 8]], [[0, 8], [0, 0]],
+        [[9, 0], [9, 5]], [[9, 6.5], [9, 8]], [[0, 5.5], [3, 5.5]], [[3, 5.5], [3, 8]],
+    ]
+    rooms = (Room("A", box(0.1, 0.1, 8.9, 7.9).difference(box(0, 5.4, 3.1, 8))),
+             Room("B", box(9.1, 0.1, 15.9, 7.9)))
+    return Floorplan(walls=np.asarray(walls, float), thickness=0.2, rooms=rooms,
+                     doors=(Door(np.array([[8.7, 5.75], [9.3, 5.75]]), ("A", "B")),),
+                     name="asym")
+
+
+def feats_for(fp):
+    r = pad_to(fp.rasterize(0.10), SHAPE, n_rooms=8)
+    return build_features(fp, PARAMS, rasters=r, corners=floorplan_corners(fp, capacity=64))
+
+
+def pad_batch(subs):
+    """Batch of N slots (missing ones empty), capacity P."""
+    b = batch(subs, P)
+    n = len(subs)
+    pad = lambda a, fill=0: np.concatenate(  # noqa: E731
+        [np.asarray(a), np.full((N - n, *np.shape(a)[1:]), fill, np.asarray(a).dtype)])
+    return SubmapBatch(points=pad(b.points), origins=pad(b.origins), mask=pad(b.mask, False),
+                       X=pad(b.X), run=pad(b.run), window=pad(b.window), t=pad(b.t),
+                       n_dropped=pad(b.n_dropped))
+
+
+def hits(cands, i, Y, xy=0.5, deg=2.0):
+    dxy, dth = se2.distance_pair(cands.pose[i], np.asarray(Y, np.float32))
+    return np.asarray((dxy < xy) & (dth < math.radians(deg)) & cands.mask[i])
+
+
+@pytest.fixture(scope="module")
+def asym():
+    fp = asym_plan()
+    subs = [
+        make_submap(fp, (2.0, 2.0), (6.0, 3.0), 0.4, n_beams=240),
+        make_submap(fp, (11.0, 2.0), (14.0, 5.0), -2.0, n_beams=240),
+        make_submap(fp, (6.0, 6.5), (2.0, 4.0), 2.5, n_beams=240),
+    ]
+    before = registry.TRACE_COUNT[0]
+    c = REG(pad_batch(subs), feats_for(fp))
+    return fp, subs, c, registry.TRACE_COUNT[0] - before
+
+
+def test_noise_free_submap_true_pose_top1(asym):
+    fp, subs, c, _ = asym
+    for i, (_, _, Y) in enumerate(subs):
+        h = hits(c, i, Y, 0.1, 1.0)
+        assert h[0], f"submap {i}: top-1 {np.asarray(c.pose[i, 0])} vs truth {Y}"
+    assert int(c.reason[3]) == 1  # the padded empty slot
+
+
+def test_equivariance_under_moving_the_plan(asym):
+    fp, subs, c, _ = asym
+    g = np.array([3.0, -2.0, 0.7])
+    c2 = REG(pad_batch(subs), feats_for(fp.transformed(g)))
+    for i in range(len(subs)):
+        moved = np.asarray(se2.compose(g, c.pose[i]))
+        for j in np.flatnonzero(np.asarray(c.mask[i]))[:5]:
+            dxy, dth = se2.distance_pair(c2.pose[i], moved[j])
+            ok = np.asarray((dxy < 0.2) & (dth < math.radians(1.5)) & c2.mask[i])
+            assert ok.any(), f"submap {i} candidate {j} has no image under g"
+        assert hits(c2, i, se2.compose(g, subs[i][2]), 0.15, 1.0)[0]
+
+
+def test_symmetric_bays_yield_alias_candidates():
+    scene = get_scene("symmetric_bays")
+    fp = scene.floorplan
+    pitch = 7.30
+    sub = make_submap(fp, (8.8, 3.0), (12.8, 4.4), 0.3, n_beams=240)
+    c = REG(pad_batch([sub]), feats_for(fp))
+    Y = sub[2]
+    assert hits(c, 0, Y).any()
+    for k in (-1, 1, 2):
+        alias = Y + np.array([k * pitch, 0.0, 0.0])
+        assert hits(c, 0, alias).any(), f"no candidate in the bay shifted by {k} pitch"
+
+
+@pytest.mark.slow
+def test_jit_and_no_jit_agree(asym):
+    fp, subs, _, _ = asym
+    small = FrontendParams(J=8, n_hough=16, hough_points=256, verify_points=128,
+                           refine_points=64, refine_steps=5, max_votes=128, min_line_pts=8)
+    b = batch(subs[:1], 1024)
+    f = build_features(fp, small)
+    c_jit = make_register(small)(b, f)
+    c_eager = register(b, f, small)
+    np.testing.assert_array_equal(np.asarray(c_jit.mask), np.asarray(c_eager.mask))
+    np.testing.assert_allclose(np.asarray(c_jit.pose), np.asarray(c_eager.pose), atol=2e-3)
+    np.testing.assert_allclose(np.asarray(c_jit.score), np.asarray(c_eager.score), atol=1e-4)
+    assert hits(c_jit, 0, subs[0][2]).any()
+
+
+def test_one_trace_for_every_batch_of_a_shape(asym):
+    fp, subs, _, traced = asym
+    assert traced == 1  # the fixture's first call: one trace for the whole batch
+    before = registry.TRACE_COUNT[0]
+    REG(pad_batch(subs[:1]), feats_for(fp.transformed((1.0, 0.0, 0.0))))
+    REG(pad_batch(subs[1:]), feats_for(fp))
+    assert registry.TRACE_COUNT[0] == before
+
+
+def test_bad_inputs_give_reasons(asym):
+    fp, subs, _, _ = asym
+    pts, org, Y = subs[0]
+    few = (pts[:10], org[:10], Y)
+    nan = (np.full_like(pts, np.nan), org, Y)
+    b = pad_batch([few, nan, subs[1]])
+    clean = sanitize_submaps(b)
+    assert int(clean.n_dropped[1]) == min(len(pts), P) and not clean.mask[1].any()
+    c = REG(b, feats_for(fp))  # NaNs reach the kernel unsanitised: still no crash
+    assert [int(r) for r in c.reason] == [2, 1, 0, 1]
+    assert not np.asarray(c.mask)[[0, 1, 3]].any()
+    assert np.isfinite(np.asarray(c.pose)).all()
+    # A floor plan without walls: empty wall raster, no corners.
+    f = feats_for(fp)
+    r = f.rasters
+    nowall = Rasters(origin=r.origin, dist=np.full(SHAPE, 50.0, np.float32),
+                     wall=np.zeros(SHAPE, bool), room_id=r.room_id, inside=r.inside,
+                     adjacency=r.adjacency, room_centroids=r.room_centroids, res=r.res)
+    empty = tuple(np.zeros_like(np.asarray(a)) for a in floorplan_corners(fp, capacity=64))
+    c = REG(b, build_features(None, PARAMS, rasters=nowall, corners=empty))
+    assert [int(x) for x in c.reason] == [2, 1, 4, 1]
+    assert not np.asarray(c.mask).any()
+
+
+def test_csv_adapter(tmp_path):
+    p = tmp_path / "c.csv"
+    p.write_text("submap,x,y,yaw_deg,score\n0,1,2,90,0.5\n0,3,4,-90,0.9\n2,0,0,0,0.1\n")
+    c = load_candidates_csv(p, n_submaps=3, J=4)
+    assert c.pose.shape == (3, 4, 3) and c.mask.sum() == 3
+    np.testing.assert_allclose(c.pose[0, 0], [3, 4, -math.pi / 2], atol=1e-6)
+    assert list(c.reason) == [0, 3, 0]
+    bad = {
+        "submap,x,y,score\n0,1,2,3\n": "missing column",
+        "submap,x,y,yaw_deg,score\n0,1,2,90,0.5\n0,1,abc,90,0.5\n": "line 3: field 'y'",
+        "submap,x,y,yaw_deg,score\n7,1,2,90,0.5\n": "line 2: field 'submap'",
+        "submap,x,y,yaw_deg,score\n0,1,2,nan,0.5\n": "field 'yaw_deg'",
+    }
+    for text, msg in bad.items():
+        p.write_text(text)
+        with pytest.raises(ValueError, match=msg) as e:
+            load_candidates_csv(p, n_submaps=3, J=4)
+        assert str(p) in str(e.value)

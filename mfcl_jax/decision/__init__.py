@@ -1,1 +1,71 @@
-"""decision."""
+"""Decision layer: anchors, feasibility gate, top-1 consensus, lattice, alias probe, states."""
+
+from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
+from mfcl_jax.decision.consensus import champions, group, leader_groups
+from mfcl_jax.decision.evaluate import (
+    evaluate,
+    evaluate_batch,
+    evaluate_run,
+    policy_names,
+    to_frame,
+)
+from mfcl_jax.decision.gate import (
+    GateMaps,
+    consistency_at,
+    gate_maps,
+    pad_maps,
+    prefix_table,
+    rooms_spanned,
+)
+from mfcl_jax.decision.lattice import KIND_NAMES, detect
+from mfcl_jax.decision.policies import BASELINES, OURS_VARIANTS, Variants, baselines, variants
+from mfcl_jax.decision.probe import probe
+from mfcl_jax.decision.state import (
+    AMBIGUOUS,
+    COMMIT,
+    DEFER,
+    REASONS,
+    STATE_NAMES,
+    DecisionParams,
+    Decisions,
+    decide_prefix,
+)
+from mfcl_jax.decision.stream import Decision, SelectiveInitializer
+
+__all__ = [
+    "AMBIGUOUS",
+    "BASELINES",
+    "COMMIT",
+    "DEFER",
+    "KIND_NAMES",
+    "OURS_VARIANTS",
+    "REASONS",
+    "STATE_NAMES",
+    "Decision",
+    "DecisionParams",
+    "Decisions",
+    "GateMaps",
+    "SelectiveInitializer",
+    "Variants",
+    "baselines",
+    "candidate_anchors",
+    "champions",
+    "consistency_at",
+    "decide_prefix",
+    "detect",
+    "evaluate",
+    "evaluate_batch",
+    "evaluate_run",
+    "gate_maps",
+    "group",
+    "leader_groups",
+    "pad_maps",
+    "per_run",
+    "policy_names",
+    "prefix_table",
+    "probe",
+    "rooms_spanned",
+    "sanitize",
+    "to_frame",
+    "variants",
+]

@@ -1,0 +1,119 @@
+"""Density-immune consensus over per-submap champions.
+
+* Champion of window ``w`` at prefix ``k``: its highest-scoring admitted candidate (admitted =
+  valid, ``w <= k``, score above the floor, gate passed when the gate is on). Lower-scored
+  candidates never enter, so flooding a submap below its champion changes nothing.
+* Grouping is leader clustering: champions are visited in a fixed order (score descending,
+  then window index); each joins the existing group whose *leader* (first member) is within
+  both ``delta_xy`` and ``delta_theta``, the nearest in planar distance among several, or
+  opens a new group. Distance to the group anchor, never chaining through members; the two
+  tolerances are tested separately, never mixed into one norm.
+* ``B_m`` is the group size (one champion per submap, so distinct submaps per group). The
+  winner is the largest group, ties to the group with the higher-scored leader;
+  ``margin = B1 - B2``; ``T*`` is the mean pose of the winner's champions (arithmetic xy,
+  circular yaw) and ``spread`` the largest planar distance of a member to ``T*``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+from mfcl_jax import se2
+
+__all__ = ["Champions", "Groups", "champions", "group", "leader_groups"]
+
+
+@dataclass(frozen=True)
+class Champions:
+    """Per-window champions at one prefix. Shapes ``(K, ...)``."""
+
+    pose: jax.Array  # (K, 3)
+    score: jax.Array  # (K,)
+    has: jax.Array  # (K,) bool
+    index: jax.Array  # (K,) int32 candidate index j*
+
+
+@dataclass(frozen=True)
+class Groups:
+    """Consensus groups at one prefix (group axis padded to ``K``)."""
+
+    assign: jax.Array  # (K,) int32 group of each champion, -1 if none
+    size: jax.Array  # (K,) int32 B_m per group slot
+    anchor: jax.Array  # (K, 3) mean pose of each group
+    n_groups: jax.Array  # () int32
+    winner: jax.Array  # () int32
+    b1: jax.Array
+    b2: jax.Array
+    margin: jax.Array
+    t_star: jax.Array  # (3,)
+    spread: jax.Array  # () max planar distance of winner members to T*
+
+
+for _cls in (Champions, Groups):
+    jax.tree_util.register_dataclass(
+        _cls, data_fields=list(_cls.__dataclass_fields__), meta_fields=[]
+    )
+
+
+def champions(H, score, admitted) -> Champions:
+    """Top-1 admitted candidate of each window.
+
+    Args:
+        H: ``(K, J, 3)`` anchors; score: ``(K, J)``; admitted: ``(K, J)`` bool.
+    """
+    s = jnp.where(admitted, score, -jnp.inf)
+    j = jnp.argmax(s, axis=-1).astype(jnp.int32)
+    pose = jnp.take_along_axis(H, j[:, None, None], axis=1)[:, 0]
+    has = jnp.any(admitted, axis=-1)
+    best = jnp.take_along_axis(score, j[:, None], axis=1)[:, 0]
+    return Champions(pose, jnp.where(has, best, jnp.zeros_like(best)), has, j)
+
+
+def leader_groups(pose, weight, has, delta_xy, delta_theta):
+    """Leader clustering of ``pose (M, 3)`` visited by ``weight`` descending (ties: index).
+
+    Returns:
+        ``(assign (M,) int32, leaders (M, 3), n_groups ())``.
+    """
+    pose, weight, has = jnp.asarray(pose), jnp.asarray(weight), jnp.asarray(has, bool)
+    m = pose.shape[0]
+    key = jnp.where(has, weight, -jnp.inf)
+    order = jnp.lexsort((jnp.arange(m), -key))
+    slots = jnp.arange(m)
+
+    def body(i, carry):
+        assign, leaders, ng = carry
+        c = order[i]
+        p = pose[c]
+        dxy, dth = se2.distance_pair(leaders, p)
+        within = (dxy <= delta_xy) & (dth <= delta_theta) & (slots < ng)
+        join = jnp.argmin(jnp.where(within, dxy, jnp.inf)).astype(jnp.int32)
+        found = jnp.any(within)
+        g = jnp.where(found, join, ng)
+        g = jnp.where(has[c], g, -1)
+        new = has[c] & ~found
+        leaders = jnp.where(new & (slots == ng)[:, None], p, leaders)
+        return assign.at[c].set(g), leaders, ng + new.astype(jnp.int32)
+
+    init = (jnp.full((m,), -1, jnp.int32), jnp.zeros_like(pose), jnp.int32(0))
+    return jax.lax.fori_loop(0, m, body, init)
+
+
+def group(ch: Champions, delta_xy, delta_theta) -> Groups:
+    """Groups champions and summarises consensus (see the module docstring)."""
+    k = ch.pose.shape[0]
+    assign, _, ng = leader_groups(ch.pose, ch.score, ch.has, delta_xy, delta_theta)
+    onehot = (assign[None, :] == jnp.arange(k)[:, None]) & ch.has[None, :]  # (G, K)
+    size = jnp.sum(onehot, axis=1).astype(jnp.int32)
+    anchor = se2.mean_pose(jnp.broadcast_to(ch.pose, (k, k, 3)), onehot.astype(ch.pose.dtype))
+    winner = jnp.argmax(size).astype(jnp.int32)  # first max: the group opened first
+    b1 = size[winner]
+    b2 = jnp.max(jnp.where(jnp.arange(k) == winner, 0, size))
+    members = onehot[winner]
+    t_star = anchor[winner]
+    dxy, _ = se2.distance_pair(ch.pose, t_star)
+    spread = jnp.max(jnp.where(members, dxy, 0.0))
+    return Groups(assign, size, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread)

@@ -1,0 +1,312 @@
+"""Feasibility gate: is the odometry trajectory, mapped by a candidate anchor, realizable?
+
+Under anchor ``H`` the trajectory maps into the floor plan as ``H * traj_t``. Each mapped
+sample gets a cell label from ``GateMaps.label``: a room index (``>= 0``), ``DOOR`` (free cell
+inside the building that belongs to no room: door openings), ``WALL`` or ``OUTSIDE``.
+
+Structural consistency over the samples ``t <= end`` of a prefix:
+
+* free fraction ``f = n_free / n_valid``: samples on a room or door cell (walls and the
+  outside are not free space);
+* transitions: the "nodes" of the walk are room cells plus ``OUTSIDE`` (a pseudo-room joined
+  only to rooms with an exterior door). Door and wall cells between two nodes are skipped, so
+  a short gap at a door is ignored, but the two rooms on either side must be joined by a door
+  (adjacency). A change of node is a transition; it is legal iff the room graph has that edge.
+  Revisits (209 -> 208 -> 207 -> 208 -> 209) are all legal;
+* consistency ``c = f * ILLEGAL_FACTOR^n_illegal`` in ``[0, 1]`` (factor 1/4): every illegal
+  transition (a jump between non-adjacent rooms, leaving or re-entering the building through
+  a wall) divides it by four, so with any ``tau_c > 0.25`` a single one fails the gate while
+  ``c`` stays graded for threshold sweeps and the probe's ``gamma`` test. The gate admits
+  iff ``c >= tau_c`` and never ranks: callers only
+  compare ``c`` with thresholds.
+
+Every statistic is an integer count accumulated along the trajectory, so the table of all
+prefixes is one cumulative sum per anchor (``prefix_table``) and the single-prefix evaluation
+(``consistency_at``) gives bit-identical numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.floorplan.raster import Rasters, lookup
+
+__all__ = [
+    "DOOR",
+    "WALL",
+    "OUTSIDE",
+    "GateMaps",
+    "gate_maps",
+    "events",
+    "consistency_from_counts",
+    "prefix_table",
+    "consistency_at",
+    "rooms_spanned",
+    "pad_maps",
+]
+
+DOOR, WALL, OUTSIDE = -1, -2, -3
+ILLEGAL_FACTOR = 0.25
+
+
+@dataclass(frozen=True)
+class GateMaps:
+    """What the gate and the lattice test read of a floor plan (a pytree; ``res`` static).
+
+    Attributes:
+        origin: ``(2,)`` grid lower-left corner (m).
+        label: ``(H, W)`` int32 cell label: room index, ``DOOR``, ``WALL`` or ``OUTSIDE``.
+        adjacency: ``(R + 1, R + 1)`` bool room graph; index ``R`` is the outside, joined to
+            rooms with an exterior door.
+        offsets: ``(P, 2)`` translations between congruent rooms (both signs), padded.
+        offsets_mask: ``(P,)`` bool.
+        generators: ``(G, 2)`` fundamental congruent-room offsets (one sign), padded.
+        generators_mask: ``(G,)`` bool.
+        res: cell size (m).
+    """
+
+    origin: jax.Array
+    label: jax.Array
+    adjacency: jax.Array
+    offsets: jax.Array
+    offsets_mask: jax.Array
+    generators: jax.Array
+    generators_mask: jax.Array
+    res: float = 0.10
+
+    @property
+    def n_rooms(self) -> int:
+        return int(self.adjacency.shape[-1]) - 1
+
+
+jax.tree_util.register_dataclass(
+    GateMaps,
+    data_fields=[
+        "origin",
+        "label",
+        "adjacency",
+        "offsets",
+        "offsets_mask",
+        "generators",
+        "generators_mask",
+    ],
+    meta_fields=["res"],
+)
+
+
+def _congruent_offsets(r: Rasters, min_iou: float) -> np.ndarray:
+    """Centroid offsets ``b - a`` between rooms whose cell sets match after translation."""
+    rid = np.asarray(r.room_id)
+    h, w = rid.shape
+    cells, cents = [], []
+    for i in range(r.n_rooms):
+        iy, ix = np.nonzero(rid == i)
+        cells.append((iy, ix))
+        cents.append(np.array([ix.mean(), iy.mean()]) if ix.size else np.array([np.nan] * 2))
+    out = []
+    for a in range(r.n_rooms):
+        for b in range(a + 1, r.n_rooms):
+            (ya, xa), (yb, xb) = cells[a], cells[b]
+            if (
+                xa.size == 0
+                or xb.size == 0
+                or min(xa.size, xb.size) < min_iou * max(xa.size, xb.size)
+            ):
+                continue
+            sx, sy = np.round(cents[a] - cents[b]).astype(int)
+            key_a = ya.astype(np.int64) * (4 * w) + xa
+            key_b = (yb + sy).astype(np.int64) * (4 * w) + (xb + sx)
+            inter = np.intersect1d(key_a, key_b, assume_unique=True).size
+            if inter / (xa.size + xb.size - inter) >= min_iou:
+                off = (cents[b] - cents[a]) * r.res
+                out.extend([off, -off])
+    return np.asarray(out, np.float64).reshape(-1, 2)
+
+
+def _fundamentals(offsets: np.ndarray, tol: float) -> np.ndarray:
+    """Offsets (one sign) that are not integer multiples of a shorter offset."""
+    canon = [o if (o[0] > 1e-6 or (abs(o[0]) <= 1e-6 and o[1] > 0)) else -o for o in offsets]
+    canon = sorted(canon, key=lambda o: float(np.hypot(*o)))
+    keep: list[np.ndarray] = []
+    for o in canon:
+        redundant = False
+        for f in keep:
+            n = round(float(np.dot(o, f) / np.dot(f, f)))
+            if n >= 1 and np.hypot(*(o - n * f)) <= tol:
+                redundant = True
+                break
+        if not redundant:
+            keep.append(o)
+    return np.asarray(keep, np.float64).reshape(-1, 2)
+
+
+def _pad(a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    if a.shape[0] > n:
+        raise ValueError(f"gate_maps: {a.shape[0]} room offsets exceed the capacity {n}")
+    out = np.zeros((n, 2), np.float32)
+    out[: a.shape[0]] = a
+    return out, np.arange(n) < a.shape[0]
+
+
+def gate_maps(
+    source,
+    res: float = 0.10,
+    min_iou: float = 0.8,
+    max_offsets: int = 32,
+    max_generators: int = 2,
+    dedupe: float = 0.5,
+) -> GateMaps:
+    """Builds ``GateMaps`` on the host from a ``Floorplan`` or ready ``Rasters``.
+
+    Args:
+        source: a ``Floorplan`` (exterior doors are read from its one-room doors) or
+            ``Rasters`` (then the outside is joined to no room).
+        res: raster resolution (m) when ``source`` is a floor plan.
+        min_iou: cell-set IoU after centroid alignment above which two rooms are congruent.
+        max_offsets: static capacity of the congruent-room offset list.
+        max_generators: static capacity of the fundamental offsets used by the alias probe.
+        dedupe: offsets closer than this (m) are merged; also the multiple-test tolerance.
+
+    Returns:
+        ``GateMaps`` with NumPy leaves (``jax.tree.map(jnp.asarray, m)`` moves them).
+    """
+    exterior: set[int] = set()
+    if isinstance(source, Rasters):
+        r = source.to_numpy()
+    elif hasattr(source, "rasterize"):
+        r = source.rasterize(res=res).to_numpy()
+        for d in source.doors:
+            if len(d.rooms) == 1:
+                exterior.add(source.room_index(d.rooms[0]))
+    else:
+        raise TypeError(f"gate_maps: expected a Floorplan or Rasters, got {type(source)!r}")
+    n = r.n_rooms
+    rid = np.asarray(r.room_id)
+    label = np.where(
+        rid >= 0, rid, np.where(np.asarray(r.wall), WALL, np.where(r.inside, DOOR, OUTSIDE))
+    ).astype(np.int32)
+    adj = np.zeros((n + 1, n + 1), bool)
+    adj[:n, :n] = np.asarray(r.adjacency, bool)
+    adj[n, n] = True
+    for i in exterior:
+        adj[i, n] = adj[n, i] = True
+    offs = _congruent_offsets(r, min_iou)
+    uniq: list[np.ndarray] = []
+    for o in offs:
+        if all(np.hypot(*(o - u)) > dedupe for u in uniq):
+            uniq.append(o)
+    offs = np.asarray(uniq, np.float64).reshape(-1, 2)
+    gens = _fundamentals(offs, dedupe)[:max_generators]
+    o, om = _pad(offs, max_offsets)
+    g, gm = _pad(gens, max_generators)
+    return GateMaps(np.asarray(r.origin, np.float32), label, adj, o, om, g, gm, float(r.res))
+
+
+def events(maps: GateMaps, H, traj, valid):
+    """Per-sample gate events of trajectories mapped by anchors.
+
+    Args:
+        maps: ``GateMaps``.
+        H: ``(..., 3)`` anchors.
+        traj: ``(T, 3)`` odometry poses in L.
+        valid: ``(T,)`` bool samples to use.
+
+    Returns:
+        ``(label, valid, free, trans, ok)``, each ``(..., T)``: cell label, sample validity,
+        free-space sample, node change, node change along a graph edge.
+    """
+    H = jnp.asarray(H)
+    xy = se2.apply(H, jnp.asarray(traj)[..., :2])  # (..., T, 2)
+    fake = Rasters(maps.origin, None, None, None, None, None, None, maps.res)
+    label = lookup(fake, maps.label, xy, OUTSIDE)
+    valid = jnp.broadcast_to(jnp.asarray(valid, bool), label.shape)
+    n_out = maps.adjacency.shape[-1] - 1
+    is_node = (label >= 0) | (label == OUTSIDE)
+    node = jnp.where(label >= 0, label, n_out)
+    t = jnp.arange(label.shape[-1], dtype=jnp.int32)
+    last = jax.lax.cummax(jnp.where(valid & is_node, t, -1), axis=label.ndim - 1)
+    prev = jnp.concatenate([jnp.full_like(last[..., :1], -1), last[..., :-1]], axis=-1)
+    prev_node = jnp.take_along_axis(node, jnp.maximum(prev, 0), axis=-1)
+    trans = valid & is_node & (prev >= 0) & (prev_node != node)
+    ok = trans & maps.adjacency[prev_node, node]
+    free = valid & ((label >= 0) | (label == DOOR))
+    return label, valid, free, trans, ok
+
+
+def consistency_from_counts(n_valid, n_free, n_trans, n_ok):
+    """``c = (n_free / n_valid) * ILLEGAL_FACTOR^(n_trans - n_ok)``; 0 without samples."""
+    f = n_free.astype(jnp.float32) / jnp.maximum(n_valid, 1).astype(jnp.float32)
+    v = jnp.power(jnp.float32(ILLEGAL_FACTOR), (n_trans - n_ok).astype(jnp.float32))
+    return jnp.where(n_valid > 0, f * v, jnp.float32(0.0))
+
+
+def prefix_table(maps: GateMaps, H, traj, traj_mask, window_end):
+    """Consistency of every anchor at every prefix, via cumulative counts.
+
+    Args:
+        maps: ``GateMaps``.
+        H: ``(..., 3)`` anchors, e.g. ``(K, J, 3)``.
+        traj: ``(T, 3)``; traj_mask: ``(T,)``.
+        window_end: ``(Kp,)`` int32 last sample index of each prefix.
+
+    Returns:
+        ``(..., Kp)`` float32 consistency.
+    """
+    _, valid, free, trans, ok = events(maps, H, traj, traj_mask)
+    end = jnp.clip(jnp.asarray(window_end), 0, valid.shape[-1] - 1)
+
+    def at_ends(x):
+        return jnp.take(jnp.cumsum(x.astype(jnp.int32), axis=-1), end, axis=-1)
+
+    return consistency_from_counts(*(at_ends(x) for x in (valid, free, trans, ok)))
+
+
+def consistency_at(maps: GateMaps, H, traj, traj_mask, end):
+    """Consistency of anchors ``H (..., 3)`` on the samples ``t <= end``; equals the table."""
+    t = jnp.arange(jnp.asarray(traj).shape[0])
+    _, valid, free, trans, ok = events(maps, H, traj, jnp.asarray(traj_mask, bool) & (t <= end))
+    counts = (jnp.sum(x.astype(jnp.int32), axis=-1) for x in (valid, free, trans, ok))
+    return consistency_from_counts(*counts)
+
+
+def rooms_spanned(maps: GateMaps, H, traj, traj_mask, end):
+    """Number of distinct rooms visited by the trajectory mapped by ``H (3,)`` up to ``end``."""
+    t = jnp.arange(jnp.asarray(traj).shape[0])
+    label, valid, *_ = events(maps, H, traj, jnp.asarray(traj_mask, bool) & (t <= end))
+    rooms = jnp.arange(maps.adjacency.shape[-1] - 1, dtype=label.dtype)
+    seen = jnp.any((label[..., :, None] == rooms) & valid[..., :, None], axis=-2)
+    return jnp.sum(seen, axis=-1).astype(jnp.int32)
+
+
+def pad_maps(m: GateMaps, shape: tuple[int, int], n_rooms: int | None = None) -> GateMaps:
+    """Pads host ``GateMaps`` to a grid bucket ``(H, W)`` and a room count (outside stays last).
+
+    Padding cells are ``OUTSIDE``; padded rooms are isolated. Lets runs of different buildings
+    (or tests) share one compiled shape.
+    """
+    h, w = np.asarray(m.label).shape
+    H, W = shape
+    n = m.n_rooms
+    R = n if n_rooms is None else n_rooms
+    if H < h or W < w or R < n:
+        raise ValueError(f"pad_maps: target {shape}, {R} rooms smaller than {(h, w)}, {n} rooms")
+    label = np.pad(np.asarray(m.label), ((0, H - h), (0, W - w)), constant_values=OUTSIDE)
+    adj = np.zeros((R + 1, R + 1), bool)
+    a = np.asarray(m.adjacency)
+    adj[:n, :n] = a[:n, :n]
+    adj[:n, R] = a[:n, n]
+    adj[R, :n] = a[n, :n]
+    adj[R, R] = True
+    adj[np.arange(R), np.arange(R)] = True
+    return GateMaps(
+        np.asarray(m.origin),
+        label,
+        adj,
+        *(np.asarray(x) for x in (m.offsets, m.offsets_mask, m.generators, m.generators_mask)),
+        m.res,
+    )

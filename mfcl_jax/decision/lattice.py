@@ -1,0 +1,94 @@
+"""Translational lattice detection over consensus groups.
+
+For two group anchors with nearly equal yaw (within ``eps_theta``), ``Delta_ab = T_a^-1 T_b``
+is a pure translation; we work with its image in the floor-plan frame, ``t_b - t_a`` (equal
+to ``T_b T_a^-1`` for equal yaw), because the period is validated against room offsets,
+which live in that frame. The groups form a coherent lattice with period ``tau`` when every
+contender satisfies ``t_a - t_w ~ k_a tau`` (``k_a`` integer, residual ``<= eps_t``) relative to
+the winner ``w``; pairwise coherence then follows (within ``2 eps_t``).
+
+``tau`` is estimated from the anchors: generators ``(t_a - t_w) / n`` for every contender and
+``n = 1..n_sub``; each coherent generator is refined by least squares over the contenders,
+``tau = sum k_a d_a / sum k_a^2``, and kept only if it lies within ``eps_t`` of a congruent-room
+offset ``o`` of the floor plan and the anchors are coherent with ``o`` itself; the reported
+``tau`` is the least-squares refit with the multiples of ``o``. Among the valid ones the shortest
+room offset is the fundamental. A sub-harmonic ``tau / n`` therefore survives only if it is
+itself a room offset. ``tau`` is reported with a
+canonical sign (positive x, or positive y when x is zero).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from mfcl_jax import se2
+
+__all__ = ["KIND_NONE", "TRANSLATION", "MULTIMODAL", "ROTATION", "MIRROR", "KIND_NAMES", "detect"]
+
+# Kind codes of AMBIGUOUS. Rotation and mirror classes are reserved (not detected yet).
+KIND_NONE, TRANSLATION, MULTIMODAL, ROTATION, MIRROR = 0, 1, 2, 3, 4
+KIND_NAMES = {
+    KIND_NONE: None,
+    TRANSLATION: "translation",
+    MULTIMODAL: "multimodal",
+    ROTATION: "rotation",
+    MIRROR: "mirror",
+}
+
+
+def detect(anchor, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n_sub: int = 3):
+    """Tests contender groups for one translational lattice.
+
+    Args:
+        anchor: ``(G, 3)`` group anchors.
+        contender: ``(G,)`` bool groups taking part (the winner included).
+        winner: ``()`` int32 index of the reference group.
+        offsets: ``(P, 2)`` congruent-room offsets (both signs); offsets_mask: ``(P,)``.
+        eps_t, eps_theta: lattice tolerances (m, rad).
+        n_sub: static number of sub-harmonics tried per generator.
+
+    Returns:
+        ``(ok (), tau (2,))``: ``ok`` when at least two contenders form a coherent lattice whose
+        period matches a room offset; ``tau`` is zero otherwise.
+    """
+    g = anchor.shape[0]
+    ref = anchor[winner]
+    d = anchor[:, :2] - ref[:2]  # (G, 2)
+    _, dth = se2.distance_pair(anchor, ref)
+    yaw_ok = jnp.all(jnp.where(contender, dth <= eps_theta, True))
+    n = jnp.arange(1, n_sub + 1, dtype=anchor.dtype)
+    gen = (d[:, None, :] / n[None, :, None]).reshape(g * n_sub, 2)  # (C, 2)
+    gen_ok = jnp.repeat(contender & (jnp.arange(g) != winner), n_sub)
+    gen_ok = gen_ok & (jnp.linalg.norm(gen, axis=-1) > 1e-6)
+
+    def fit(v):  # v: (C, 2) periods -> integer multiples (C, G) and coherence (C,)
+        v2 = jnp.maximum(jnp.sum(v * v, axis=-1), 1e-12)
+        k = jnp.round(jnp.einsum("gd,cd->cg", d, v) / v2[:, None])
+        res = jnp.linalg.norm(d[None] - k[..., None] * v[:, None, :], axis=-1)
+        return k, jnp.all(jnp.where(contender[None], res <= eps_t, True), axis=-1)
+
+    def refine(k):  # least-squares period from integer multiples (C, G)
+        kc = jnp.where(contender[None], k, 0.0)
+        den = jnp.sum(kc * kc, axis=-1)
+        return jnp.einsum("cg,gd->cd", kc, d) / jnp.maximum(den, 1.0)[:, None], den
+
+    k, coherent = fit(gen)
+    tau, den = refine(k)
+    # Validate against the layout: the nearest congruent-room offset must be within eps_t and
+    # the anchors must also be coherent with that offset itself (this rejects generators that
+    # only fit through loose integer multiples, e.g. 2/3 of the pitch).
+    dist = jnp.linalg.norm(tau[:, None, :] - offsets[None], axis=-1)
+    dist = jnp.where(offsets_mask[None], dist, jnp.inf)
+    near = jnp.argmin(dist, axis=-1)
+    room = offsets[near]
+    layout_ok = jnp.min(dist, axis=-1) <= eps_t
+    k_room, coherent_room = fit(room)
+    tau, den_room = refine(k_room)
+    valid = gen_ok & coherent & layout_ok & coherent_room & (den > 0) & (den_room > 0)
+    length = jnp.where(valid, jnp.linalg.norm(room, axis=-1), jnp.inf)
+    best = jnp.argmin(length)
+    ok = jnp.any(valid) & yaw_ok & (jnp.sum(contender) >= 2)
+    t = tau[best]
+    flip = (t[0] < -1e-6) | ((jnp.abs(t[0]) <= 1e-6) & (t[1] < 0))
+    t = jnp.where(flip, -t, t)
+    return ok, jnp.where(ok, t, jnp.zeros_like(t))

@@ -1,0 +1,81 @@
+"""Alias probe: re-gate period-shifted copies of the winner.
+
+Aliases are ``T* + n tau`` (floor-plan-frame translation, orientation kept) for
+``n = +-1..+-n_max`` and every probe period: the lattice period detected over all groups (when
+one is found) and the floor plan's fundamental congruent-room offsets, so an image that the
+front-end's tie-breaking kept out of the champions can still block a commit. An alias is
+admissible iff it passes the gate (``c >= tau_c``) and ``c >= c_winner - gamma``.
+
+The winner itself is gated in the same batched call, and its rooms spanned read from the same
+labels, so the probe costs one ``events`` evaluation of ``1 + 2 P n_cap`` anchors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+from mfcl_jax.decision import gate as gate_mod
+
+__all__ = ["ProbeResult", "probe"]
+
+
+@dataclass(frozen=True)
+class ProbeResult:
+    c_winner: jax.Array  # () consistency of T*
+    rooms: jax.Array  # () int32 rooms spanned by the trajectory under T*
+    alias: jax.Array  # () bool an admissible alias exists
+    tau: jax.Array  # (2,) period of the first admissible alias (zero if none)
+    c_alias: jax.Array  # () best alias consistency among the probed ones (0 if none)
+    n: jax.Array  # () int32 shift count of the admissible alias (0 if none)
+
+
+jax.tree_util.register_dataclass(
+    ProbeResult, data_fields=list(ProbeResult.__dataclass_fields__), meta_fields=[]
+)
+
+
+def probe(
+    maps, t_star, taus, taus_mask, traj, traj_mask, end, tau_c, gamma, n_max, n_cap: int = 3
+) -> ProbeResult:
+    """Gates ``T*`` and its period-shifted aliases on the samples ``t <= end``.
+
+    Args:
+        maps: ``GateMaps``.
+        t_star: ``(3,)`` winner anchor.
+        taus: ``(P, 2)`` probe periods; taus_mask: ``(P,)`` bool (all False: no probe).
+        traj: ``(T, 3)``; traj_mask: ``(T,)``; end: last sample index of the prefix.
+        tau_c, gamma, n_max: thresholds (traced); ``n_max <= n_cap``.
+        n_cap: static number of shifts per sign.
+    """
+    n = jnp.concatenate([jnp.arange(1, n_cap + 1), -jnp.arange(1, n_cap + 1)])  # (2n_cap,)
+    shift = n[None, :, None].astype(taus.dtype) * taus[:, None, :]  # (P, 2n_cap, 2)
+    alias = jnp.concatenate(
+        [t_star[:2] + shift, jnp.broadcast_to(t_star[2], shift.shape[:-1])[..., None]], axis=-1
+    )
+    p = taus.shape[0]
+    anchors = jnp.concatenate([t_star[None], alias.reshape(-1, 3)], axis=0)
+    t = jnp.arange(traj.shape[0])
+    label, valid, free, trans, ok = gate_mod.events(
+        maps, anchors, traj, jnp.asarray(traj_mask, bool) & (t <= end)
+    )
+    counts = (jnp.sum(x.astype(jnp.int32), axis=-1) for x in (valid, free, trans, ok))
+    c = gate_mod.consistency_from_counts(*counts)
+    rooms = jnp.arange(maps.adjacency.shape[-1] - 1, dtype=label.dtype)
+    seen = jnp.any((label[0][:, None] == rooms) & valid[0][:, None], axis=0)
+    c_win, c_alias = c[0], c[1:].reshape(p, 2 * n_cap)
+    used = taus_mask[:, None] & (jnp.abs(n).astype(jnp.float32) <= n_max)[None, :]
+    adm = used & (c_alias >= tau_c) & (c_alias >= c_win - gamma)
+    found = jnp.any(adm)
+    flat = jnp.argmax(adm.reshape(-1))
+    tau = jnp.where(found, taus[flat // (2 * n_cap)], jnp.zeros((2,), taus.dtype))
+    return ProbeResult(
+        c_winner=c_win,
+        rooms=jnp.sum(seen).astype(jnp.int32),
+        alias=found,
+        tau=tau,
+        c_alias=jnp.max(jnp.where(used, c_alias, 0.0)),
+        n=jnp.where(found, n[flat % (2 * n_cap)], 0).astype(jnp.int32),
+    )

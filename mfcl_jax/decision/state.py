@@ -1,0 +1,225 @@
+"""The selective decision at one prefix (Algorithm 1), as a pure array function.
+
+``decide_prefix`` maps the candidates of windows ``1..k``, their gate consistencies at prefix
+``k`` and the trajectory up to ``window_end[k]`` to one ``Decisions`` record. It holds no state, so
+the batch path (``vmap`` over prefixes) and the streaming path (latest prefix only) agree.
+
+Order of tests (first that fires wins):
+
+1. no valid candidate                                  -> DEFER ("no anchors")
+2. best score below the floor                          -> DEFER ("below floor")
+3. no admitted champion (all gated)                    -> DEFER ("no feasible champion")
+4. fewer than 2 rooms spanned under T*                 -> DEFER ("unsaturated")
+5. T* fails the gate / spread > sigma_max              -> DEFER ("winner infeasible"/"spread")
+6. margin < delta_min and tied groups form a lattice   -> AMBIGUOUS(translation, tau)
+7. B1 >= b_min and margin >= delta_min: probe aliases; an admissible one
+   -> AMBIGUOUS(translation, tau), else COMMIT(T*)
+8. otherwise -> AMBIGUOUS (multimodal with >= 2 groups, no kind with one group)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax.decision import consensus, lattice, probe
+
+__all__ = [
+    "DEFER",
+    "AMBIGUOUS",
+    "COMMIT",
+    "STATE_NAMES",
+    "REASONS",
+    "DecisionParams",
+    "Decisions",
+    "decide_prefix",
+]
+
+DEFER, AMBIGUOUS, COMMIT = 0, 1, 2
+STATE_NAMES = {DEFER: "DEFER", AMBIGUOUS: "AMBIGUOUS", COMMIT: "COMMIT"}
+REASONS = {
+    0: "",
+    1: "no anchors",
+    2: "below floor",
+    3: "no feasible champion",
+    4: "unsaturated",
+    5: "winner infeasible",
+    6: "spread",
+    7: "alias without period",
+    8: "not triggered",
+}
+
+
+@dataclass(frozen=True)
+class DecisionParams:
+    """Decision-layer thresholds (paper Table I defaults). Every field is a traced leaf.
+
+    Angles are in radians. ``score_floor`` drops candidates (and defers when every score is
+    below it); ``confidence_ratio`` and ``support_ratio`` parametrise the baselines.
+    """
+
+    delta_xy: float = 1.5
+    delta_theta: float = float(np.deg2rad(18.0))
+    b_min: float = 3.0
+    delta_min: float = 2.0
+    sigma_max: float = 3.0
+    tau_c: float = 0.50
+    n_max: float = 3.0
+    gamma: float = 0.075
+    eps_t: float = 2.5
+    eps_theta: float = float(np.deg2rad(12.0))
+    score_floor: float = 0.0
+    confidence_ratio: float = 1.2
+    support_ratio: float = 1.5
+
+    def replace(self, **kw) -> DecisionParams:
+        return replace(self, **kw)
+
+    def as_arrays(self) -> DecisionParams:
+        """Leaves as float32 JAX scalars (what kernels expect)."""
+        vals = {f.name: jnp.float32(getattr(self, f.name)) for f in fields(self)}
+        return DecisionParams(**vals)
+
+    @staticmethod
+    def stack(params: list[DecisionParams]) -> DecisionParams:
+        """A threshold set axis ``(S,)`` from a list of parameter sets."""
+        names = [f.name for f in fields(DecisionParams)]
+        for p in params:
+            for n in names:
+                if not np.isfinite(float(getattr(p, n))):
+                    raise ValueError(f"DecisionParams: non-finite {n}={getattr(p, n)!r}")
+        vals = {n: jnp.asarray([float(getattr(p, n)) for p in params], jnp.float32) for n in names}
+        return DecisionParams(**vals)
+
+
+jax.tree_util.register_dataclass(
+    DecisionParams,
+    data_fields=[f.name for f in fields(DecisionParams)],
+    meta_fields=[],
+)
+
+
+@dataclass(frozen=True)
+class Decisions:
+    """One decision (scalars; batched leading axes ``(R, K, S, V)`` in the evaluator)."""
+
+    state: jax.Array  # int32 DEFER/AMBIGUOUS/COMMIT
+    kind: jax.Array  # int32 lattice.KIND_*
+    anchor: jax.Array  # (3,) T* (ours) or the policy's pick (baselines)
+    tau: jax.Array  # (2,) zero unless kind == translation
+    b1: jax.Array
+    b2: jax.Array
+    margin: jax.Array
+    n_groups: jax.Array
+    n_champions: jax.Array
+    spread: jax.Array
+    rooms: jax.Array  # rooms spanned under T*
+    c_winner: jax.Array
+    winner_gate: jax.Array  # bool
+    probe_alias: jax.Array  # bool
+    probe_c: jax.Array
+    reason: jax.Array  # int32 key of REASONS
+    max_score: jax.Array
+
+
+jax.tree_util.register_dataclass(
+    Decisions, data_fields=list(Decisions.__dataclass_fields__), meta_fields=[]
+)
+
+
+def decide_prefix(
+    k,
+    H,
+    score,
+    mask,
+    cons,
+    traj,
+    traj_mask,
+    end,
+    maps,
+    p: DecisionParams,
+    use_gate,
+    use_probe,
+    b_min,
+    delta_min,
+    n_cap: int = 3,
+) -> Decisions:
+    """Our decision at prefix ``k`` (0-based window index).
+
+    Args:
+        k: ``()`` int32 prefix (windows ``0..k`` are visible).
+        H: ``(K, J, 3)`` anchors; score: ``(K, J)``; mask: ``(K, J)`` valid candidates
+            (padded windows already masked).
+        cons: ``(K, J)`` gate consistency of each candidate at this prefix.
+        traj: ``(T, 3)``; traj_mask: ``(T,)``; end: last trajectory sample of prefix ``k``.
+        maps: ``GateMaps``; p: scalar ``DecisionParams``.
+        use_gate, use_probe: ``()`` bool variant flags (traced).
+        b_min, delta_min: ``()`` commit floors (traced; the variant may override ``p``'s).
+        n_cap: static probe shift capacity.
+    """
+    kk = H.shape[0]
+    visible = mask & (jnp.arange(kk) <= k)[:, None]
+    any_anchor = jnp.any(visible)
+    max_score = jnp.max(jnp.where(visible, score, -jnp.inf))
+    max_score = jnp.where(any_anchor, max_score, 0.0)
+    admitted = visible & (score >= p.score_floor) & ((cons >= p.tau_c) | ~use_gate)
+    ch = consensus.champions(H, score, admitted)
+    g = consensus.group(ch, p.delta_xy, p.delta_theta)
+    slots = jnp.arange(kk)
+    live = slots < g.n_groups
+    tied = live & ((g.b1 - g.size).astype(jnp.float32) < delta_min)
+    lat_ok, lat_tau = lattice.detect(
+        g.anchor, tied, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
+    )
+    all_ok, all_tau = lattice.detect(
+        g.anchor, live, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
+    )
+    taus = jnp.concatenate([all_tau[None], maps.generators.astype(all_tau.dtype)], axis=0)
+    taus_mask = jnp.concatenate([all_ok[None], maps.generators_mask]) & use_probe
+    pr = probe.probe(
+        maps, g.t_star, taus, taus_mask, traj, traj_mask, end, p.tau_c, p.gamma, p.n_max, n_cap
+    )
+    gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
+    b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
+    decisive = (b1 >= b_min) & (margin >= delta_min)
+    tests = [
+        ~any_anchor,
+        max_score < p.score_floor,
+        g.n_groups == 0,
+        pr.rooms < 2,
+        ~gate_w,
+        g.spread > p.sigma_max,
+        (margin < delta_min) & lat_ok,
+        decisive & pr.alias,
+        decisive,
+    ]
+    multi = jnp.where(g.n_groups >= 2, lattice.MULTIMODAL, lattice.KIND_NONE)
+    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, COMMIT]
+    kinds = [lattice.KIND_NONE] * 6 + [lattice.TRANSLATION, lattice.TRANSLATION, lattice.KIND_NONE]
+    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0]
+    state = jnp.select(tests, states, AMBIGUOUS).astype(jnp.int32)
+    kind = jnp.select(tests, kinds, multi).astype(jnp.int32)
+    reason = jnp.select(tests, reasons, 0).astype(jnp.int32)
+    tau = jnp.select(tests[6:8], [lat_tau, pr.tau], jnp.zeros_like(lat_tau))
+    return Decisions(
+        state=state,
+        kind=kind,
+        anchor=g.t_star,
+        tau=jnp.where(kind == lattice.TRANSLATION, tau, 0.0),
+        b1=g.b1,
+        b2=g.b2,
+        margin=g.margin,
+        n_groups=g.n_groups,
+        n_champions=jnp.sum(ch.has).astype(jnp.int32),
+        spread=g.spread,
+        rooms=pr.rooms,
+        c_winner=pr.c_winner,
+        winner_gate=pr.c_winner >= p.tau_c,
+        probe_alias=pr.alias,
+        probe_c=pr.c_alias,
+        reason=reason,
+        max_score=max_score,
+    )

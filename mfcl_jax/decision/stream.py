@@ -1,0 +1,215 @@
+"""Streaming decisions for a robot: one ``update`` per submap window.
+
+The initializer keeps padded host buffers (windows, candidates, trajectory samples) whose
+capacities double when full, so the jitted single-prefix decision recompiles only
+``O(log n)`` times over a run. Each update evaluates exactly the batch path's kernel
+(``state.decide_prefix``) on the newest prefix, with gate consistencies computed directly at
+that prefix (bit-identical to the batch path's cumulative table), so the stream reproduces the
+batch states.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.decision import gate as gate_mod
+from mfcl_jax.decision import lattice
+from mfcl_jax.decision.anchors import sanitize
+from mfcl_jax.decision.policies import OURS_VARIANTS
+from mfcl_jax.decision.state import REASONS, STATE_NAMES, DecisionParams, decide_prefix
+
+__all__ = ["Decision", "SelectiveInitializer"]
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The decision after one window (host values).
+
+    Attributes:
+        k: 1-based window count; t: time stamp given to ``update`` (or None).
+        state: "COMMIT" | "AMBIGUOUS" | "DEFER".
+        anchor: ``(x, y, yaw)`` of T* (the commit anchor when COMMIT).
+        kind: None | "translation" | "multimodal" | "rotation" | "mirror".
+        tau: ``(tx, ty)`` or None.
+        diagnostics: B1, B2, margin, spread, rooms, c_winner, winner_gate, probe_alias,
+            probe_c, n_champions, n_groups, reason, n_rejected.
+    """
+
+    k: int
+    t: float | None
+    state: str
+    anchor: tuple[float, float, float]
+    kind: str | None
+    tau: tuple[float, float] | None
+    diagnostics: dict = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        """One line of the decisions JSON-lines format (anchor only when COMMIT)."""
+        d = self.diagnostics
+        anchor = None
+        if self.state == "COMMIT":
+            x, y, yaw = self.anchor
+            anchor = {"x": x, "y": y, "yaw_deg": float(np.rad2deg(yaw))}
+        return json.dumps(
+            {
+                "k": self.k,
+                "t": self.t,
+                "state": self.state,
+                "anchor": anchor,
+                "symmetry": self.kind,
+                "tau": None if self.tau is None else list(self.tau),
+                "B1": d["B1"],
+                "B2": d["B2"],
+                "margin": d["margin"],
+            }
+        )
+
+
+@partial(jax.jit, static_argnames=("n_cap",))
+def _decide_latest(H, score, mask, traj, traj_mask, window_end, k, maps, p, flags, n_cap=3):
+    cons = gate_mod.consistency_at(maps, H, traj, traj_mask, window_end[k])
+    ug, up, bm, dm = flags
+    bm = jnp.where(bm < 0, p.b_min, bm)
+    dm = jnp.where(dm < 0, p.delta_min, dm)
+    return decide_prefix(
+        k, H, score, mask, cons, traj, traj_mask, window_end[k], maps, p, ug, up, bm, dm, n_cap
+    )
+
+
+def _grow(a: np.ndarray, axis: int, need: int, fill) -> np.ndarray:
+    cap = a.shape[axis]
+    if need <= cap:
+        return a
+    while cap < need:
+        cap *= 2
+    pad = [(0, 0)] * a.ndim
+    pad[axis] = (0, cap - a.shape[axis])
+    return np.pad(a, pad, constant_values=fill)
+
+
+class SelectiveInitializer:
+    """Streaming selective initializer (our policy or one of its variants).
+
+    Args:
+        source: ``Floorplan``, ``Rasters`` or ready ``GateMaps``.
+        params: scalar ``DecisionParams``.
+        variant: a key of ``OURS_VARIANTS``.
+        k_cap, j_cap, t_cap: initial buffer capacities (they double when exceeded).
+    """
+
+    def __init__(
+        self,
+        source,
+        params: DecisionParams | None = None,
+        variant: str = "ours",
+        k_cap: int = 8,
+        j_cap: int = 16,
+        t_cap: int = 256,
+        n_cap: int = 3,
+    ):
+        if variant not in OURS_VARIANTS:
+            raise ValueError(
+                f"SelectiveInitializer: unknown {variant=}; known {list(OURS_VARIANTS)}"
+            )
+        maps = source if isinstance(source, gate_mod.GateMaps) else gate_mod.gate_maps(source)
+        self._maps = jax.tree.map(jnp.asarray, maps)
+        self._params = (params or DecisionParams()).as_arrays()
+        ug, up, bm, dm = OURS_VARIANTS[variant]
+        self._flags = (jnp.bool_(ug), jnp.bool_(up), jnp.float32(bm), jnp.float32(dm))
+        self._n_cap = n_cap
+        self.H = np.zeros((k_cap, j_cap, 3), np.float32)
+        self.score = np.zeros((k_cap, j_cap), np.float32)
+        self.mask = np.zeros((k_cap, j_cap), bool)
+        self.traj = np.zeros((t_cap, 3), np.float32)
+        self.traj_mask = np.zeros(t_cap, bool)
+        self.window_end = np.zeros(k_cap, np.int32)
+        self.k = 0
+        self.t = 0
+        self.n_rejected = 0
+
+    def update(
+        self, candidate_poses, scores, X_i, trajectory_poses_since_last, t: float | None = None
+    ) -> Decision:
+        """Adds one window and returns the decision at this prefix.
+
+        Args:
+            candidate_poses: ``(J, 3)`` ``Y_ij = ^B T_{S_i}`` (may be empty; NaN rows rejected).
+            scores: ``(J,)``.
+            X_i: ``(3,)`` ``^L T_{S_i}``.
+            trajectory_poses_since_last: ``(T_i, 3)`` odometry poses since the last update, the
+                last one being this window's last scan.
+            t: optional time stamp echoed in the decision.
+        """
+        Y = np.asarray(candidate_poses, np.float32).reshape(-1, 3)
+        s = np.asarray(scores, np.float32).reshape(-1)
+        X = np.asarray(X_i, np.float32).reshape(-1)
+        tr = np.asarray(trajectory_poses_since_last, np.float32).reshape(-1, 3)
+        if s.shape[0] != Y.shape[0]:
+            raise ValueError(f"update: {Y.shape[0]} candidate poses but {s.shape[0]} scores")
+        if X.shape != (3,) or not np.all(np.isfinite(X)):
+            raise ValueError(f"update: X_i must be a finite (3,) pose, got {X.tolist()}")
+        if not np.all(np.isfinite(tr)):
+            raise ValueError("update: trajectory_poses_since_last holds non-finite poses")
+        if self.t + tr.shape[0] == 0:
+            raise ValueError("update: no trajectory sample yet (T_i = 0 on the first window)")
+        j = Y.shape[0]
+        self.H = _grow(_grow(self.H, 0, self.k + 1, 0.0), 1, j, 0.0)
+        self.score = _grow(_grow(self.score, 0, self.k + 1, 0.0), 1, j, 0.0)
+        self.mask = _grow(_grow(self.mask, 0, self.k + 1, False), 1, j, False)
+        self.window_end = _grow(self.window_end, 0, self.k + 1, 0)
+        self.traj = _grow(self.traj, 0, self.t + tr.shape[0], 0.0)
+        self.traj_mask = _grow(self.traj_mask, 0, self.t + tr.shape[0], False)
+        H = np.asarray(se2.anchor(Y, X[None]), np.float32) if j else np.zeros((0, 3), np.float32)
+        H, s, m, bad = (np.asarray(a) for a in sanitize(H, s, np.ones(j, bool)))
+        self.n_rejected += int(bad)
+        self.H[self.k, :j], self.score[self.k, :j], self.mask[self.k, :j] = H, s, m
+        self.traj[self.t : self.t + tr.shape[0]] = tr
+        self.traj_mask[self.t : self.t + tr.shape[0]] = True
+        self.t += tr.shape[0]
+        self.window_end[self.k] = self.t - 1
+        self.k += 1
+        d = _decide_latest(
+            self.H,
+            self.score,
+            self.mask,
+            self.traj,
+            self.traj_mask,
+            self.window_end,
+            jnp.int32(self.k - 1),
+            self._maps,
+            self._params,
+            self._flags,
+            n_cap=self._n_cap,
+        )
+        d = jax.tree.map(np.asarray, d)
+        kind = lattice.KIND_NAMES[int(d.kind)]
+        return Decision(
+            k=self.k,
+            t=t,
+            state=STATE_NAMES[int(d.state)],
+            anchor=tuple(float(v) for v in d.anchor),
+            kind=kind,
+            tau=tuple(float(v) for v in d.tau) if kind == "translation" else None,
+            diagnostics={
+                "B1": int(d.b1),
+                "B2": int(d.b2),
+                "margin": int(d.margin),
+                "spread": float(d.spread),
+                "rooms": int(d.rooms),
+                "c_winner": float(d.c_winner),
+                "winner_gate": bool(d.winner_gate),
+                "probe_alias": bool(d.probe_alias),
+                "probe_c": float(d.probe_c),
+                "n_champions": int(d.n_champions),
+                "n_groups": int(d.n_groups),
+                "reason": REASONS[int(d.reason)],
+                "n_rejected": self.n_rejected,
+            },
+        )

@@ -1,0 +1,148 @@
+"""Anchors, feasibility gate, grouping and lattice kernels of the decision layer."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from mfcl_jax import se2
+from mfcl_jax.decision import gate, lattice
+from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
+from mfcl_jax.decision.consensus import leader_groups
+from tests.test_decision_scenes import PITCH, row_of_rooms, three_rooms, walk
+
+ROW = jax.tree.map(jnp.asarray, gate.gate_maps(row_of_rooms()))
+CLOSED = jax.tree.map(jnp.asarray, gate.gate_maps(row_of_rooms(closed=(2,))))
+
+
+_consistency = jax.jit(gate.consistency_at)
+
+
+def _c(maps, H, traj, cap=256):
+    # One padded trajectory length, so every call reuses one compilation.
+    n = len(traj)
+    tr = np.zeros((cap, 3), np.float32)
+    tr[:n] = traj
+    H = np.asarray(H, np.float32)
+    return float(_consistency(maps, H, tr, np.arange(cap) < n, jnp.int32(n - 1)))
+
+
+pose = st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-3.1, 3.1)).map(
+    lambda t: np.asarray(t, np.float32)
+)
+
+
+@given(pose, pose, pose)
+def test_anchor_is_Y_Xinv_and_maps_submap_to_floorplan(a, x, y):
+    # The true anchor A with Y = A X must be recovered; X^-1 Y differs once X rotates.
+    Y = np.asarray(se2.compose(a, x))
+    H = np.asarray(candidate_anchors(Y[None, None], x[None]))[0, 0]
+    dxy, dth = se2.distance_pair(H, a)
+    assert float(dxy) < 1e-3 and float(dth) < 1e-4
+
+
+def test_anchor_order_matters():
+    a = np.array([5.0, -2.0, 0.3], np.float32)
+    x = np.array([1.0, 4.0, 1.2], np.float32)
+    Y = np.asarray(se2.compose(a, x))
+    wrong = np.asarray(se2.compose(se2.inverse(x), Y))  # X^-1 Y
+    assert float(se2.distance_pair(wrong, a)[0]) > 1.0
+    H = np.asarray(candidate_anchors(Y[None, None], x[None]))[0, 0]
+    assert float(se2.distance_pair(H, a)[0]) < 1e-4
+
+
+def test_sanitize_masks_and_counts_non_finite():
+    p = np.zeros((2, 3, 3), np.float32)
+    p[0, 1, 2] = np.nan
+    s = np.ones((2, 3), np.float32)
+    s[1, 2] = np.inf
+    m = np.ones((2, 3), bool)
+    m[1, 0] = False
+    p2, s2, m2, bad = sanitize(p, s, m)
+    assert np.all(np.isfinite(p2)) and np.all(np.isfinite(s2))
+    assert np.asarray(bad).tolist() == [1, 1]
+    assert np.asarray(m2).tolist() == [[True, False, True], [False, True, False]]
+    H, _, _, nb = per_run(p, s, m, np.array([[1, 0, -1]]), np.array([[True, True, False]]))
+    assert H.shape == (1, 3, 3, 3) and np.asarray(nb).tolist() == [[1, 1, 0]]
+
+
+def test_gate_passes_legal_revisit():
+    # 1 -> 2 -> 3 -> 2 -> 1 through the doors (the 209-208-207-208-209 pattern).
+    tr = walk([[10, 2.5], [17, 2.5], [25, 2.5], [17, 2.5], [10, 2.5]])
+    assert _c(ROW, [0, 0, 0], tr) > 0.95
+
+
+def test_gate_fails_jump_between_non_adjacent_rooms_and_leaving_the_building():
+    tr = walk([[10, 2.5], [17, 2.5]])
+    assert _c(CLOSED, [0, 0, 0], tr) < 0.5  # wall 2 has no door: r1 -> r2 is not an edge
+    assert _c(ROW, [0, 0, 0], tr) > 0.95
+    # Shifted two pitches to the right the second room lies outside the building.
+    tr2 = walk([[10, 2.5], [17, 2.5], [10, 2.5]])
+    assert _c(ROW, [2 * PITCH, 0, 0], tr2) < 0.5
+
+
+def test_prefix_table_equals_single_prefix_evaluation():
+    rng = np.random.default_rng(0)
+    tr = walk([[3, 2.5], [25, 2.5], [20, 4.0]])
+    H = np.concatenate([rng.uniform(-8, 8, (4, 5, 2)), rng.uniform(-0.5, 0.5, (4, 5, 1))], -1)
+    H = H.astype(np.float32)
+    ends = np.array([20, 40, 60, len(tr) - 1], np.int32)
+    mask = np.ones(len(tr), bool)
+    table = np.asarray(gate.prefix_table(ROW, H, tr, mask, ends))
+    for k, e in enumerate(ends):
+        direct = np.asarray(gate.consistency_at(ROW, H, tr, mask, e))
+        np.testing.assert_array_equal(table[..., k], direct)
+    assert table.min() >= 0 and table.max() <= 1
+
+
+def test_congruent_room_offsets():
+    m = gate.gate_maps(row_of_rooms())
+    offs = m.offsets[m.offsets_mask]
+    assert np.allclose(
+        sorted(np.abs(offs[:, 0])),
+        sorted([PITCH, PITCH, 2 * PITCH, 2 * PITCH, 3 * PITCH, 3 * PITCH]),
+        atol=0.15,
+    )
+    assert np.allclose(m.generators[m.generators_mask], [[PITCH, 0]], atol=0.15)
+    m3 = gate.gate_maps(three_rooms())
+    assert not m3.offsets_mask.any() and not m3.generators_mask.any()
+
+
+def test_leader_clustering_does_not_chain():
+    # A chain with 1.0 m steps: single linkage would merge all; leaders split it.
+    p = np.stack([np.arange(6.0), np.zeros(6), np.zeros(6)], -1).astype(np.float32)
+    w = np.array([6, 5, 4, 3, 2, 1], np.float32)
+    assign, _, ng = leader_groups(p, w, np.ones(6, bool), 1.5, 0.3)
+    assert int(ng) == 3 and np.asarray(assign).tolist() == [0, 0, 1, 1, 2, 2]
+    # Yaw beyond delta_theta opens a new group even at the same position.
+    q = np.array([[0, 0, 0], [0, 0, 0.5]], np.float32)
+    assert (
+        int(leader_groups(q, np.array([2.0, 1.0], np.float32), np.ones(2, bool), 1.5, 0.3)[2]) == 2
+    )
+
+
+def _detect(anchors, maps=ROW, eps_t=2.5):
+    a = np.asarray(anchors, np.float32)
+    return lattice.detect(
+        a,
+        np.ones(len(a), bool),
+        jnp.int32(0),
+        maps.offsets,
+        maps.offsets_mask,
+        eps_t,
+        np.deg2rad(12.0),
+    )
+
+
+def test_lattice_detects_fundamental_and_rejects_subharmonics():
+    ok, tau = _detect([[0, 0, 0.1], [PITCH, 0.2, 0.1], [2 * PITCH, -0.1, 0.12]])
+    assert bool(ok) and abs(float(tau[0]) - PITCH) < 0.3
+    ok, tau = _detect([[0, 0, 0.1], [-2 * PITCH, 0, 0.1]])  # only 2p seen: p is a room offset
+    assert bool(ok) and abs(float(tau[0]) - PITCH) < 0.3
+    ok, _ = _detect([[0, 0, 0.1], [PITCH / 2, 0, 0.1]])  # half pitch is no room offset
+    assert not bool(ok)
+    ok, _ = _detect([[0, 0, 0.1], [PITCH, 0, 0.8]])  # yaw differs: no translation lattice
+    assert not bool(ok)
+    ok, _ = _detect([[0, 0, 0.1], [PITCH, 0, 0.1], [4.0, 3.0, 0.1]])  # incoherent third group
+    assert not bool(ok)

@@ -1,0 +1,262 @@
+"""Decision layer end to end: states, C2 immunity, invariances, lattice/probe, stream == batch.
+
+All evaluations share one padded shape bucket so the jitted evaluator compiles once.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mfcl_jax import se2
+from mfcl_jax.decision import (
+    DecisionParams,
+    SelectiveInitializer,
+    evaluate,
+    gate_maps,
+    pad_maps,
+    per_run,
+    policy_names,
+    to_frame,
+    variants,
+)
+from mfcl_jax.decision.evaluate import TRACES
+from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, shift, three_rooms, walk
+
+K, J, T, GRID = 8, 16, 192, (340, 340)
+NAMES = policy_names()
+OURS = NAMES.index("ours")
+A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
+# r1 -> r2 -> r1 -> r0 -> r3: the shifted aliases die only once both row ends are visited.
+PATH = [[10, 2.5], [18, 2.5], [10, 2.5], [3, 2.5], [26, 2.5]]
+
+
+def maps_of(fp):
+    return jax.tree.map(jnp.asarray, pad_maps(gate_maps(fp), GRID, 4))
+
+
+ROW = maps_of(row_of_rooms())
+P1 = DecisionParams.stack([DecisionParams()])
+
+
+def pad_run(run):
+    t = run["traj"].shape[0]
+    assert t <= T
+    out = dict(run)
+    out["traj"] = np.pad(run["traj"], ((0, T - t), (0, 0)))
+    out["traj_mask"] = np.pad(run["traj_mask"], (0, T - t))
+    for key in ("H", "score", "mask"):
+        a = run[key]
+        pad = [(0, 0), (0, J - a.shape[1])] + [(0, 0)] * (a.ndim - 2)
+        out[key] = np.pad(a, pad)
+    return out
+
+
+def evaluate_runs(runs, maps=ROW, params=P1):
+    runs = [pad_run(r) for r in runs]
+    keys = ("H", "score", "mask", "traj", "traj_mask", "window_end", "window_mask")
+    b = [jnp.asarray(np.stack([r[k] for r in runs])) for k in keys]
+    out = evaluate(*b, maps, params, variants())
+    return jax.tree.map(np.asarray, out)
+
+
+def lattice_cands(k, Y):
+    # true and +p alias alternate as champion; a low-scored stray candidate.
+    return [(Y, 1.0), (shift(Y, PITCH), 1.05 if k % 2 else 0.9), (shift(Y, 2.0, 1.0), 0.3)]
+
+
+def probe_cands(k, Y):
+    # the true anchor always wins; the +p image is never a champion (tie-broken away).
+    return [(Y, 1.0 + 0.01 * k), (shift(Y, PITCH), 0.9), (shift(Y, -3.0, 0.5), 0.2)]
+
+
+def run_of(cand_fn, path=PATH, anchor=A):
+    return make_run(walk(path), anchor, K, cand_fn, J=J)
+
+
+def ours(out, k=None):
+    d = jax.tree.map(lambda x: x[0, :, 0, OURS], out)
+    return d if k is None else jax.tree.map(lambda x: x[k], d)
+
+
+def test_lattice_ambiguous_then_commit_when_aliases_become_infeasible():
+    out = evaluate_runs([run_of(lattice_cands)])
+    d = ours(out)
+    states = d.state.tolist()
+    amb = [k for k in range(K) if states[k] == 1 and d.kind[k] == 1]
+    assert amb, states
+    for k in amb:
+        assert abs(np.linalg.norm(d.tau[k]) - PITCH) < 2.5
+    assert states[-1] == 2  # the walk spans the whole row: every shifted anchor leaves the plan
+    dxy, dth = se2.distance_pair(d.anchor[-1], A)
+    assert float(dxy) < 0.05 and float(dth) < 1e-3
+
+
+def test_probe_blocks_commit_while_alias_is_feasible():
+    out = evaluate_runs([run_of(probe_cands)])
+    d = ours(out)
+    no_probe = jax.tree.map(lambda x: x[0, :, 0, NAMES.index("no_probe")], out)
+    blocked = [k for k in range(K) if d.state[k] == 1 and d.probe_alias[k] and d.kind[k] == 1]
+    assert blocked, d.state.tolist()
+    assert all(no_probe.state[k] == 2 for k in blocked if d.b1[k] >= 3)
+    assert abs(float(d.tau[blocked[0]][0]) - PITCH) < 0.3
+    assert d.state[-1] == 2
+
+
+def test_defer_without_anchors_below_floor_and_unsaturated():
+    empty = run_of(lambda k, Y: [])
+    low = run_of(lambda k, Y: [(Y, 0.2)])
+    one_room = run_of(probe_cands, path=[[9, 1.5], [13, 3.5], [9, 3.5]])
+    params = DecisionParams.stack([DecisionParams(score_floor=0.5)])
+    outs = [evaluate_runs([r], params=params) for r in (empty, low, one_room)]
+    out = jax.tree.map(lambda *x: np.concatenate(x, axis=0), *outs)
+    st_ = out.state[:, :, 0, OURS]
+    assert (st_ == 0).all()
+    assert set(out.reason[0, :, 0, OURS].tolist()) == {1}
+    assert set(out.reason[1, :, 0, OURS].tolist()) == {2}
+    assert set(out.reason[2, :, 0, OURS].tolist()) == {4}
+    assert np.isfinite(out.anchor).all()
+
+
+def test_nan_candidates_are_rejected_and_counted():
+    base = run_of(probe_cands)
+    bad = dict(base)
+    bad["H"] = base["H"].copy()
+    bad["score"] = base["score"].copy()
+    bad["mask"] = base["mask"].copy()
+    bad["H"][:, 5] = np.nan
+    bad["score"][:, 5] = 5.0
+    bad["mask"][:, 5] = True
+    H, s, m, n_bad = per_run(
+        bad["H"], bad["score"], bad["mask"], np.arange(K)[None], np.ones((1, K), bool)
+    )
+    assert np.asarray(n_bad).tolist() == [[1] * K]
+    clean = dict(bad, H=np.asarray(H[0]), score=np.asarray(s[0]), mask=np.asarray(m[0]))
+    a, b = evaluate_runs([base]), evaluate_runs([clean])
+    np.testing.assert_array_equal(a.state, b.state)
+    assert np.isfinite(b.anchor).all() and np.isfinite(b.c_winner).all()
+
+
+FIELDS = ("state", "kind", "b1", "b2", "margin", "n_groups", "n_champions")
+
+
+def assert_same(a, b, v=slice(0, 5)):
+    for f in FIELDS:
+        np.testing.assert_array_equal(getattr(a, f)[..., v], getattr(b, f)[..., v], err_msg=f)
+    np.testing.assert_allclose(a.anchor[..., v, :], b.anchor[..., v, :], atol=1e-4)
+    np.testing.assert_allclose(a.tau[..., v, :], b.tau[..., v, :], atol=1e-4)
+
+
+BASE = run_of(probe_cands)
+BASE_OUT = evaluate_runs([BASE])
+
+
+@settings(max_examples=6)
+@given(st.integers(1, 12), st.integers(0, 2**31 - 1))
+def test_c2_immunity_flooding_below_top1(n, seed):
+    rng = np.random.default_rng(seed)
+    run = {k: np.array(v, copy=True) for k, v in BASE.items()}
+    j0 = int(run["mask"][0].sum())
+    for k in range(K):
+        top = run["score"][k][run["mask"][k]].max()
+        m = min(n, J - j0)
+        near_alias = run["H"][k, 1] + rng.normal(0, 0.3, (m, 3)) * [1, 1, 0.05]
+        anywhere = np.concatenate([rng.uniform(-10, 30, (m, 2)), rng.uniform(-3, 3, (m, 1))], -1)
+        pick = rng.random(m) < 0.5
+        run["H"][k, j0 : j0 + m] = np.where(pick[:, None], near_alias, anywhere)
+        run["score"][k, j0 : j0 + m] = top * rng.uniform(0.0, 0.999, m)
+        run["mask"][k, j0 : j0 + m] = True
+    out = evaluate_runs([run])
+    assert_same(BASE_OUT, out)
+
+
+def test_support_flips_under_flooding_while_ours_does_not():
+    run = {k: np.array(v, copy=True) for k, v in BASE.items()}
+    for k in range(K):
+        run["H"][k, 3:13] = run["H"][k, 1] + np.linspace(-0.2, 0.2, 10)[:, None] * [1, 1, 0]
+        run["score"][k, 3:13] = 0.5
+        run["mask"][k, 3:13] = True
+    out = evaluate_runs([run])
+    assert_same(BASE_OUT, out)
+    sup = NAMES.index("support")
+    a0, a1 = BASE_OUT.anchor[0, -1, 0, sup], out.anchor[0, -1, 0, sup]
+    assert float(se2.distance_pair(a0, A)[0]) < 0.5
+    assert float(se2.distance_pair(a1, A)[0]) > 5.0
+
+
+@settings(max_examples=4)
+@given(st.integers(0, 2**31 - 1))
+def test_permutation_invariance(seed):
+    rng = np.random.default_rng(seed)
+    run = run_of(lattice_cands)
+    perm = rng.permutation(J)
+    run2 = dict(run, H=run["H"][:, perm], score=run["score"][:, perm], mask=run["mask"][:, perm])
+    assert_same(evaluate_runs([run]), evaluate_runs([run2]), v=slice(None))
+
+
+def test_rigid_motion_equivariance():
+    g = np.array([4.0, -6.0, 0.6])
+    maps_g = maps_of(row_of_rooms().transformed(g))
+    run = run_of(lattice_cands)
+    run_g = dict(run, H=np.asarray(se2.compose(g, run["H"]), np.float32))
+    a, b = evaluate_runs([run]), evaluate_runs([run_g], maps=maps_g)
+    for f in ("state", "kind", "b1", "b2"):
+        np.testing.assert_array_equal(getattr(a, f)[..., :5], getattr(b, f)[..., :5], err_msg=f)
+    moved = np.asarray(se2.compose(g, a.anchor[..., :5, :]))
+    dxy, dth = se2.distance_pair(moved, b.anchor[..., :5, :])
+    assert float(jnp.max(dxy)) < 1e-3 and float(jnp.max(dth)) < 1e-4
+    tr = a.kind[..., :5] == 1
+    rot = np.asarray(se2.rotate(g[2], a.tau[..., :5, :][tr]))
+    np.testing.assert_allclose(rot, b.tau[..., :5, :][tr], atol=1e-3)
+
+
+def test_multimodal_in_non_congruent_rooms():
+    maps3 = maps_of(three_rooms())
+    path = [[3, 3], [10, 3], [16, 3], [10, 3]]
+
+    def cands(k, Y):  # champions split between two rooms, no congruent offset
+        return [(Y, 1.0), (shift(Y, 7.0), 1.1 if k % 2 else 0.8)]
+
+    out = evaluate_runs([make_run(walk(path), A, K, cands, J=J)], maps=maps3)
+    d = ours(out)
+    assert (d.kind[d.state == 1] != 1).all()
+    assert (d.kind == 2).any()
+
+
+def test_threshold_sweep_does_not_recompile():
+    run = run_of(lattice_cands)
+    evaluate_runs([run])
+    before = TRACES["evaluate"]
+    for tau_c in (0.3, 0.6, 0.9):
+        evaluate_runs(
+            [run], params=DecisionParams.stack([DecisionParams(tau_c=tau_c, delta_xy=1.0)])
+        )
+    assert TRACES["evaluate"] == before
+
+
+def test_frame_has_one_row_per_run_window_variant():
+    df = to_frame(BASE_OUT, NAMES)
+    assert len(df) == K * len(NAMES)
+    assert {"state", "kind", "x", "y", "yaw_deg", "tau_x", "B1", "B2", "margin"} <= set(df.columns)
+
+
+def test_stream_equals_batch():
+    run = run_of(lattice_cands)
+    out = ours(evaluate_runs([run]))
+    maps = pad_maps(gate_maps(row_of_rooms()), GRID, 4)  # the batch path's padded maps
+    init = SelectiveInitializer(maps, DecisionParams(), k_cap=4, j_cap=J, t_cap=T)
+    traj, prev = run["traj"], 0
+    X = run["X"]
+    for k in range(K):
+        e = int(run["window_end"][k])
+        m = run["mask"][k]
+        Y = np.asarray(se2.compose(run["H"][k][m], X[k]))
+        d = init.update(Y, run["score"][k][m], X[k], traj[prev : e + 1], t=float(k))
+        prev = e + 1
+        assert ["DEFER", "AMBIGUOUS", "COMMIT"][out.state[k]] == d.state
+        assert d.diagnostics["B1"] == out.b1[k] and d.diagnostics["B2"] == out.b2[k]
+        np.testing.assert_allclose(d.anchor, out.anchor[k], atol=1e-4)
+        assert (d.tau is None) == (out.kind[k] != 1)
+        assert '"state"' in d.to_json()
+    assert init.H.shape[0] == 8  # grew by doubling

@@ -1,0 +1,107 @@
+"""Synthetic floor plans and candidate sets shared by the decision-layer tests."""
+
+import numpy as np
+from shapely.geometry import box
+
+from mfcl_jax.floorplan import Door, Floorplan, Room
+
+PITCH = 7.3
+HEIGHT = 5.0
+WT = 0.15  # wall thickness
+
+
+def row_of_rooms(widths=(PITCH,) * 4, height=HEIGHT, door=(2.0, 3.0), name="row", closed=()):
+    """Rooms side by side along x, internal doors at ``door`` (y-range), no exterior door.
+
+    Internal walls listed in ``closed`` (1-based wall index i between rooms i-1 and i) have no
+    door.
+    """
+    xs = np.concatenate([[0.0], np.cumsum(widths)])
+    walls = [
+        [[0, 0], [xs[-1], 0]],
+        [[xs[-1], 0], [xs[-1], height]],
+        [[xs[-1], height], [0, height]],
+        [[0, height], [0, 0]],
+    ]
+    rooms, doors = [], []
+    h = WT / 2
+    for i in range(len(widths)):
+        rooms.append(Room(f"r{i}", box(xs[i] + h, h, xs[i + 1] - h, height - h)))
+    for i in range(1, len(widths)):
+        if i in closed:
+            walls.append([[xs[i], 0], [xs[i], height]])
+            continue
+        walls += [[[xs[i], 0], [xs[i], door[0]]], [[xs[i], door[1]], [xs[i], height]]]
+        doors.append(Door(np.array([[xs[i], door[0]], [xs[i], door[1]]]), (f"r{i - 1}", f"r{i}")))
+    return Floorplan(
+        walls=np.array(walls, float),
+        thickness=WT,
+        rooms=tuple(rooms),
+        doors=tuple(doors),
+        name=name,
+    )
+
+
+def three_rooms():
+    """Three non-congruent rooms (areas differ), like the real 207-209 study."""
+    return row_of_rooms(widths=(6.0, 8.5, 4.0), height=6.0, door=(2.5, 3.5), name="three")
+
+
+def walk(points, step=0.25):
+    """Odometry-like samples (T, 3) along a polyline, yaw along the motion."""
+    pts = np.asarray(points, float)
+    out = []
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
+        yaw = np.arctan2(*(b - a)[::-1])
+        for s in np.arange(n) / n:
+            p = a + s * (b - a)
+            out.append([p[0], p[1], yaw])
+    out.append([*pts[-1], out[-1][2]])
+    return np.asarray(out, float)
+
+
+def to_odom(traj_b, anchor):
+    """Trajectory in B -> odometry frame L given the hidden anchor ^B T_L."""
+    from mfcl_jax import se2
+
+    return np.asarray(se2.compose(se2.inverse(np.asarray(anchor)), traj_b))
+
+
+def make_run(traj_b, anchor, n_windows, cand_fn, J=8):
+    """Candidates for windows evenly spread along ``traj_b`` (B frame).
+
+    ``cand_fn(k, Y_true) -> list of (pose_B (3,), score)`` gives the candidates of window k.
+    Returns a dict of host arrays for one run (K, J padded).
+    """
+    from mfcl_jax import se2
+
+    traj_l = to_odom(traj_b, anchor)
+    t = len(traj_l)
+    ends = np.linspace(t // n_windows, t - 1, n_windows).astype(np.int32)
+    X = traj_l[ends]
+    Y_true = np.asarray(se2.compose(np.asarray(anchor), X))
+    H = np.zeros((n_windows, J, 3))
+    S = np.zeros((n_windows, J))
+    M = np.zeros((n_windows, J), bool)
+    for k in range(n_windows):
+        cs = cand_fn(k, Y_true[k])
+        for j, (pose, sc) in enumerate(cs[:J]):
+            H[k, j] = np.asarray(se2.anchor(np.asarray(pose, float), X[k]))
+            S[k, j] = sc
+            M[k, j] = True
+    return dict(
+        H=H.astype(np.float32),
+        score=S.astype(np.float32),
+        mask=M,
+        traj=traj_l.astype(np.float32),
+        traj_mask=np.ones(t, bool),
+        window_end=ends,
+        window_mask=np.ones(n_windows, bool),
+        X=X,
+        Y_true=Y_true,
+    )
+
+
+def shift(pose, dx, dy=0.0):
+    return np.asarray(pose, float) + np.array([dx, dy, 0.0])

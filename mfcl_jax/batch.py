@@ -15,7 +15,16 @@ from dataclasses import dataclass, fields
 import jax
 import numpy as np
 
-__all__ = ["SubmapBatch", "RunBatch", "Truth", "Candidates", "REASONS", "bucket"]
+__all__ = [
+    "SubmapBatch",
+    "RunBatch",
+    "Truth",
+    "Candidates",
+    "REASONS",
+    "bucket",
+    "pad_submaps",
+    "concat",
+]
 
 
 def _register(cls, meta=()):
@@ -135,3 +144,92 @@ class Candidates:
 
 for _cls in (SubmapBatch, RunBatch, Candidates):
     _register(_cls)
+
+
+def _pad_axis(a: np.ndarray, axis: int, size: int, value) -> np.ndarray:
+    a = np.asarray(a)
+    if a.shape[axis] == size:
+        return a
+    width = [(0, 0)] * a.ndim
+    width[axis] = (0, size - a.shape[axis])
+    return np.pad(a, width, constant_values=value)
+
+
+def pad_submaps(sub: SubmapBatch, n: int | None = None, p: int | None = None) -> SubmapBatch:
+    """Pads a ``SubmapBatch`` (host) to ``n`` submaps and ``p`` points; padding is masked out."""
+    n = sub.n if n is None else n
+    p = int(sub.points.shape[1]) if p is None else p
+    if n < sub.n or p < int(sub.points.shape[1]):
+        raise ValueError(f"pad_submaps: target ({n}, {p}) smaller than {sub.points.shape[:2]}")
+
+    def both(a, value):
+        return _pad_axis(_pad_axis(a, 0, n, value), 1, p, value)
+
+    return SubmapBatch(
+        points=both(sub.points, 0.0),
+        origins=both(sub.origins, 0.0),
+        mask=both(sub.mask, False),
+        X=_pad_axis(sub.X, 0, n, 0.0),
+        run=_pad_axis(sub.run, 0, n, -1),
+        window=_pad_axis(sub.window, 0, n, -1),
+        t=_pad_axis(sub.t, 0, n, np.nan),
+        n_dropped=_pad_axis(sub.n_dropped, 0, n, 0),
+    )
+
+
+def concat(parts: list[tuple[SubmapBatch, RunBatch, Truth]]):
+    """Stacks several (submaps, runs, truth) batches into one, re-indexing runs and submaps.
+
+    Returns:
+        ``(SubmapBatch, RunBatch, Truth, run_offsets, submap_offsets)``; run ``r`` of part ``i``
+        becomes run ``run_offsets[i] + r``.
+    """
+    p = max(int(s.points.shape[1]) for s, _, _ in parts)
+    k = max(r.n_windows for _, r, _ in parts)
+    t = max(int(r.traj.shape[1]) for _, r, _ in parts)
+    subs, runs, truths, run_off, sub_off = [], [], [], [], []
+    n_runs = n_subs = 0
+    for s, r, tr in parts:
+        run_off.append(n_runs)
+        sub_off.append(n_subs)
+        s = pad_submaps(jax.tree.map(np.asarray, s), p=p)
+        subs.append(
+            SubmapBatch(
+                s.points, s.origins, s.mask, s.X, np.where(s.run >= 0, s.run + n_runs, -1),
+                s.window, s.t, s.n_dropped,
+            )
+        )
+        r = jax.tree.map(np.asarray, r)
+        submap = _pad_axis(np.where(r.submap >= 0, r.submap + n_subs, -1), 1, k, -1)
+        runs.append(
+            RunBatch(
+                traj=_pad_axis(r.traj, 1, t, 0.0),
+                traj_t=_pad_axis(r.traj_t, 1, t, np.nan),
+                traj_mask=_pad_axis(r.traj_mask, 1, t, False),
+                window_end=_pad_axis(r.window_end, 1, k, 0),
+                window_mask=_pad_axis(r.window_mask, 1, k, False),
+                submap=submap,
+            )
+        )
+        truths.append(
+            Truth(
+                traj=_pad_axis(np.asarray(tr.traj), 1, t, 0.0),
+                anchor=np.asarray(tr.anchor),
+                Y=np.asarray(tr.Y),
+            )
+        )
+        n_runs += r.n_runs
+        n_subs += s.n
+    cat = lambda *xs: np.concatenate(xs, axis=0)  # noqa: E731
+    return (
+        jax.tree.map(cat, *subs),
+        jax.tree.map(cat, *runs),
+        Truth(
+            traj=np.concatenate([x.traj for x in truths]),
+            anchor=np.concatenate([x.anchor for x in truths]),
+            Y=np.concatenate([x.Y for x in truths]),
+        ),
+        run_off,
+        sub_off,
+    )
+

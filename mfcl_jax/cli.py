@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from mfcl_jax.cli_floorplan import add_floorplan_commands
+from mfcl_jax.cli_localize import add_localize_commands
 
 __all__ = ["main", "build_parser"]
 
@@ -16,6 +17,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     add_floorplan_commands(sub)
+    add_localize_commands(sub)
     return parser
 
 

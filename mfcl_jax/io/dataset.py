@@ -58,12 +58,13 @@ class Dataset:
         return len(self.times)
 
 
-def load_dataset(folder, storey=None) -> Dataset:
+def load_dataset(folder, storey=None, floorplan: Floorplan | None = None) -> Dataset:
     """Loads a dataset folder.
 
     Args:
         folder: the dataset folder.
         storey: IFC storey (when the floor plan is an IFC file).
+        floorplan: use this floor plan instead of the folder's (the folder then needs none).
 
     Raises:
         DataError: missing pieces, a scan without a matching odometry line (or the reverse),
@@ -74,11 +75,14 @@ def load_dataset(folder, storey=None) -> Dataset:
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(f"{folder}: dataset folder not found")
-    plans = [folder / n for n in FLOORPLAN_NAMES if (folder / n).is_file()]
-    if len(plans) != 1:
-        found = [p.name for p in plans] or "none"
-        raise DataError(f"{folder}: need exactly one of {FLOORPLAN_NAMES}, found {found}")
-    fp = load_floorplan(plans[0], storey=storey)
+    if floorplan is None:
+        plans = [folder / n for n in FLOORPLAN_NAMES if (folder / n).is_file()]
+        if len(plans) != 1:
+            found = [p.name for p in plans] or "none"
+            raise DataError(f"{folder}: need exactly one of {FLOORPLAN_NAMES}, found {found}")
+        fp = load_floorplan(plans[0], storey=storey)
+    else:
+        fp = floorplan
     times, odom, strs = read_tum(folder / "odometry.tum", with_strings=True)
     if len(times) == 0:
         raise DataError(f"{folder / 'odometry.tum'}: no poses")

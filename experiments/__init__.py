@@ -1,0 +1,1 @@
+"""Experiment entry points (thin: the logic lives in mfcl_jax)."""

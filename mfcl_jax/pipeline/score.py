@@ -1,0 +1,129 @@
+"""Scoring a decisions log against ground truth (the only place ground truth is used).
+
+A decision at time ``t`` with anchor ``T*`` places the robot at ``T* X(t)``, ``X(t)`` the
+odometry pose at ``t``; it is compared with the true pose at ``t``. Both are looked up by
+time in the odometry / ground-truth tables (exact match within 1 ms, otherwise linear
+interpolation between the bracketing lines; a time outside the table is an error).
+A commit is correct within ``metrics.CORRECT_XY`` m and ``metrics.CORRECT_YAW_DEG`` deg.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from mfcl_jax import se2
+from mfcl_jax.evaluate.metrics import CORRECT_XY, CORRECT_YAW_DEG
+from mfcl_jax.io.errors import DataError
+
+__all__ = ["pose_at", "score_decisions", "summarize", "format_table"]
+
+
+def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
+    """Poses ``(n, 3)`` at times ``t (n,)`` (exact within 1 ms, else interpolated)."""
+    times = np.asarray(times, np.float64)
+    poses = np.asarray(poses, np.float64)
+    t = np.atleast_1d(np.asarray(t, np.float64))
+    lo, hi = times[0] - 1e-3, times[-1] + 1e-3
+    bad = (t < lo) | (t > hi) | ~np.isfinite(t)
+    if bad.any():
+        raise DataError(
+            f"{where}: decision time t={t[bad][0]} outside [{times[0]}, {times[-1]}]"
+        )
+    yaw = np.unwrap(poses[:, 2])
+    out = np.stack([np.interp(t, times, poses[:, 0]), np.interp(t, times, poses[:, 1]),
+                    np.interp(t, times, yaw)], -1)
+    j = np.clip(np.searchsorted(times, t), 0, len(times) - 1)
+    j = np.where((j > 0) & (np.abs(times[np.maximum(j - 1, 0)] - t) < np.abs(times[j] - t)),
+                 j - 1, j)
+    exact = np.abs(times[j] - t) < 1e-3
+    out[exact] = poses[j[exact]]
+    out[:, 2] = np.arctan2(np.sin(out[:, 2]), np.cos(out[:, 2]))
+    return out
+
+
+def score_decisions(decisions, odom_times, odom, gt_times, gt, floorplan=None,
+                    where: str = "<decisions>") -> pd.DataFrame:
+    """Per-decision table with placement errors.
+
+    Args:
+        decisions: decision dicts (``io.read_decisions``).
+        odom_times, odom: ``(N,)``, ``(N, 3)`` odometry in L.
+        gt_times, gt: ``(M,)``, ``(M, 3)`` true sensor poses in B.
+        floorplan: optional, adds the placed and true room names.
+
+    Returns:
+        Columns ``k, t, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor, NaN when
+        none), ``err_xy, err_yaw_deg, correct`` (NaN/False without an anchor), and
+        ``room, true_room`` when a floor plan is given.
+    """
+    rows = []
+    for d in decisions:
+        a = d["anchor"] or {}
+        rows.append(dict(k=int(d["k"]), t=d["t"], state=d["state"], symmetry=d["symmetry"],
+                         B1=d["B1"], B2=d["B2"], margin=d["margin"],
+                         x=a.get("x", math.nan), y=a.get("y", math.nan),
+                         yaw_deg=a.get("yaw_deg", math.nan)))
+    df = pd.DataFrame(rows, columns=["k", "t", "state", "symmetry", "B1", "B2", "margin", "x",
+                                     "y", "yaw_deg"])
+    if df.empty:
+        return df.assign(err_xy=[], err_yaw_deg=[], correct=[])
+    if df["t"].isna().any():
+        raise DataError(f"{where}: decision k={int(df.loc[df['t'].isna(), 'k'].iloc[0])} has no t")
+    t = df["t"].to_numpy(np.float64)
+    X = pose_at(odom_times, odom, t, f"{where} (odometry)")
+    Y = pose_at(gt_times, gt, t, f"{where} (ground truth)")
+    A = df[["x", "y", "yaw_deg"]].to_numpy(np.float64, copy=True)
+    A[:, 2] = np.deg2rad(A[:, 2])
+    has = np.all(np.isfinite(A), 1)
+    placed = np.asarray(se2.compose(np.where(has[:, None], A, 0.0), X), np.float64)
+    dxy, dth = (np.asarray(v, np.float64) for v in se2.distance_pair(placed, Y))
+    df["err_xy"] = np.where(has, dxy, np.nan)
+    df["err_yaw_deg"] = np.where(has, np.degrees(dth), np.nan)
+    df["correct"] = has & (df["err_xy"] < CORRECT_XY) & (df["err_yaw_deg"] < CORRECT_YAW_DEG)
+    df["true_x"], df["true_y"] = Y[:, 0], Y[:, 1]
+    df["placed_x"] = np.where(has, placed[:, 0], np.nan)
+    df["placed_y"] = np.where(has, placed[:, 1], np.nan)
+    if floorplan is not None:
+        df["room"] = [r if h else None for r, h in
+                      zip(floorplan.room_at(placed[:, :2]), has, strict=True)]
+        df["true_room"] = floorplan.room_at(Y[:, :2])
+    return df
+
+
+def summarize(scored: pd.DataFrame) -> dict:
+    """First commit and end state of one scored run.
+
+    Returns:
+        ``windows, first_commit_k, first_commit_t, err_xy, err_yaw_deg, correct,
+        false_commit, final_state, final_symmetry, commits, commits_correct``.
+    """
+    out = dict(windows=len(scored), first_commit_k=None, first_commit_t=None,
+               err_xy=math.nan, err_yaw_deg=math.nan, correct=None, false_commit=False,
+               final_state=None, final_symmetry=None, commits=0, commits_correct=0)
+    if scored.empty:
+        return out
+    s = scored.sort_values("k")
+    last = s.iloc[-1]
+    out["final_state"] = last["state"]
+    out["final_symmetry"] = last["symmetry"] if isinstance(last["symmetry"], str) else None
+    com = s[s["state"] == "COMMIT"]
+    out["commits"] = len(com)
+    if "correct" in s:
+        out["commits_correct"] = int(com["correct"].sum())
+    if len(com):
+        c = com.iloc[0]
+        out.update(first_commit_k=int(c["k"]), first_commit_t=float(c["t"]))
+        if "err_xy" in c:
+            out.update(err_xy=float(c["err_xy"]), err_yaw_deg=float(c["err_yaw_deg"]),
+                       correct=bool(c["correct"]), false_commit=not bool(c["correct"]))
+    return out
+
+
+def format_table(df: pd.DataFrame, floatfmt: str = ".2f") -> str:
+    """A plain-text table (tabulate) of a small frame."""
+    from tabulate import tabulate
+
+    return tabulate(df, headers="keys", tablefmt="github", showindex=False, floatfmt=floatfmt)

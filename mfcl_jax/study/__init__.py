@@ -1,0 +1,1 @@
+"""The study: the pipeline, the derived experiments and the report."""

@@ -1,0 +1,100 @@
+"""``run_study``: the whole sweep in one process, and the merge of multirun job outputs."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from mfcl_jax.config import StudyConfig
+from mfcl_jax.study import density, pipeline, report
+
+__all__ = ["run_study", "merge"]
+
+RAW = "windows.csv.gz"
+
+
+def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
+    """The density-immunity table for ``cfg.density_run`` (``traj@d_s``) at the main seed."""
+    traj, ds = cfg.density_run.split("@")
+    sel = data.runs[(data.runs["scene"] == "three_rooms") & (data.runs["trajectory"] == traj)
+                    & (data.runs["d_s"] == float(ds)) & (data.runs["seed"] == cfg.main_seed)]
+    if not len(sel):
+        return None
+    run = int(sel["run"].iloc[0])
+    ours = scored[(scored["run"] == run) & (scored["policy"] == "ours")].sort_values("k")
+    com = ours[ours["state"] == "COMMIT"]
+    k_star = int(com["k"].iloc[0]) if len(com) else int(ours["k"].max())
+    sub_data, sub_c = density.subset(data, cands, [run])
+    # Only windows up to our commit window: the pool is the one the decision saw.
+    wm = np.asarray(sub_data.runs_batch.window_mask).copy()
+    wm[:, k_star:] = False
+    rb = sub_data.runs_batch
+    sub_data.runs_batch = type(rb)(rb.traj, rb.traj_t, rb.traj_mask, rb.window_end, wm, rb.submap)
+    flooded = density.flood(sub_c, cfg.density_factor, seed=cfg.main_seed)
+    frames = []
+    pools = []
+    for label, c in (("original", sub_c), ("flooded", flooded)):
+        w = pipeline.decide(sub_data, c, cfg.decision, tm, label=f"density {label}",
+                            progress=cfg.progress)
+        frames.append(pipeline.score(sub_data, w))
+        rows = np.asarray(rb.submap)[0, :k_star]
+        pools.append(int(np.asarray(c.mask)[rows[rows >= 0]].sum()))
+    return density.density_table(frames[0], frames[1], k_star, pools[0], pools[1])
+
+
+def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
+    """Runs the sweep and writes every table and figure under ``cfg.out``.
+
+    Returns:
+        The tables by name (also written as CSV/Markdown/LaTeX).
+    """
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    tm = pipeline.Timings()
+    t_start = time.perf_counter()
+    seeds = list(range(cfg.seed0, cfg.seed0 + cfg.seeds))
+    data = pipeline.prepare(cfg.scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress)
+    cands = pipeline.register_all(data, cfg.frontend, tm, cfg.progress)
+    windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
+    scored = pipeline.score(data, windows)
+    dens = _density(data, cands, scored, cfg, tm) if "three_rooms" in cfg.scenes else None
+    t0 = time.perf_counter()
+    if write_raw:
+        raw = out / "raw"
+        raw.mkdir(exist_ok=True)
+        scored.drop(columns=["yaw"]).to_csv(raw / RAW, index=False, float_format="%.5g")
+        if dens is not None:
+            dens.to_csv(raw / "density_immunity.csv", index=False)
+    paths = report.build_figures(scored, data, cands, out, cfg.main_seed) if cfg.figures else []
+    tm.add("tables + figures", 0.0, time.perf_counter() - t0, f"{len(paths)} figures")
+    tm.add("wall clock", 0.0, time.perf_counter() - t_start, "whole sweep, end to end")
+    timings = tm.frame()
+    timings = timings[timings["stage"] != "total"]
+    tabs = report.build_tables(scored, out, cfg.main_seed, dens, timings)
+    (out / "sweep_config.json").write_text(json.dumps(
+        {"scenes": cfg.scenes, "d_s": cfg.d_s, "seeds": seeds, "main_seed": cfg.main_seed,
+         "density_run": cfg.density_run, "density_factor": cfg.density_factor}, indent=1))
+    return tabs
+
+
+def merge(job_dirs, out, main_seed: int = 0) -> dict:
+    """Builds the tables from several jobs' raw outputs (a Hydra multirun)."""
+    frames, dens = [], None
+    for d in job_dirs:
+        p = Path(d) / "raw" / RAW
+        if p.exists():
+            frames.append(pd.read_csv(p))
+        q = Path(d) / "raw" / "density_immunity.csv"
+        if q.exists():
+            dens = pd.read_csv(q)
+    if not frames:
+        raise FileNotFoundError(f"merge: no {RAW} under any of {list(map(str, job_dirs))}")
+    scored = pd.concat(frames, ignore_index=True)
+    # Runs are numbered per job; make them unique before grouping.
+    scored["run"] = scored.groupby(["scene", "trajectory", "d_s", "seed"]).ngroup()
+    Path(out).mkdir(parents=True, exist_ok=True)
+    return report.build_tables(scored, out, main_seed, dens)

@@ -1,0 +1,145 @@
+"""``mfcl simulate -> localize -> evaluate`` round trip, and every bad input: non-zero exit,
+a message naming the file, no partial output."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from mfcl_jax.cli import main
+from mfcl_jax.floorplan import save_geojson
+from mfcl_jax.floorplan.scenes import get_scene
+from mfcl_jax.io import read_decisions
+
+# 207 -> 208, a loop in 208, back to 207: about 40 m, about 17 windows of 6 m.
+WAYPOINTS = [(6.0, 4.0), (6.0, 8.6), (21.0, 8.6), (21.0, 4.0), (18.0, 4.0), (18.0, 8.6), (8.0, 8.6)]
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cli")
+    plan = root / "three.geojson"
+    save_geojson(get_scene("three_rooms").floorplan, plan)
+    wp = root / "wp.csv"
+    wp.write_text("x,y\n" + "\n".join(f"{x},{y}" for x, y in WAYPOINTS) + "\n")
+    ds = root / "ds"
+    assert main(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out",
+                 str(ds), "--seed", "3"]) == 0
+    return root, plan, wp, ds
+
+
+def test_round_trip(sim, capsys):
+    root, _, _, ds = sim
+    for name in ("floorplan.geojson", "odometry.tum", "groundtruth.tum", "scans"):
+        assert (ds / name).exists()
+    out = root / "dec.jsonl"
+    assert main(["localize", str(ds), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "k=  1" in text and "windows" in text
+    lines = out.read_text().splitlines()
+    decs = read_decisions(out)  # validates the schema
+    assert len(decs) == len(lines) >= 5
+    for i, (d, line) in enumerate(zip(decs, lines, strict=True), 1):
+        assert list(json.loads(line)) == ["k", "t", "state", "anchor", "symmetry", "tau", "B1",
+                                          "B2", "margin"]
+        assert d["k"] == i and isinstance(d["t"], float)
+        assert (d["anchor"] is None) == (d["state"] != "COMMIT")
+    assert [d["t"] for d in decs] == sorted(d["t"] for d in decs)
+    assert main(["evaluate", str(ds), "--decisions", str(out), "--windows"]) == 0
+    table = capsys.readouterr().out
+    assert "first commit k" in table and "final state" in table
+    # A commit, if any, must be scored, and a false one would show as FALSE.
+    if any(d["state"] == "COMMIT" for d in decs):
+        assert "correct" in table or "FALSE" in table
+
+
+def _fails(argv, capsys, *names):
+    assert main(argv) != 0
+    err = capsys.readouterr().err
+    assert err.startswith("mfcl: error:") and "Traceback" not in err
+    for n in names:
+        assert str(n) in err, err
+    return err
+
+
+@pytest.mark.parametrize(
+    "body, where",
+    [
+        ("x,y\n1,2\n3,abc\n", "line 3: field y"),
+        ("1,2\n3\n", "line 2: expected 2 fields"),
+        ("1,2\n", "at least 2 waypoints"),
+        ("1,2\nnan,4\n", "line 2: field x"),
+    ],
+)
+def test_simulate_bad_csv(sim, tmp_path, capsys, body, where):
+    _, plan, _, _ = sim
+    wp = tmp_path / "bad.csv"
+    wp.write_text(body)
+    out = tmp_path / "out"
+    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(out)],
+           capsys, wp, where)
+    assert not out.exists() and not any(p.name.startswith(".out") for p in tmp_path.iterdir())
+
+
+def test_simulate_bad_inputs(sim, tmp_path, capsys):
+    _, plan, wp, ds = sim
+    through_wall = tmp_path / "wall.csv"
+    through_wall.write_text("6,5\n20,5\n")  # crosses the 207/208 partition at x = 13.8
+    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(through_wall), "--out",
+            str(tmp_path / "o")], capsys, through_wall, "wall")
+    _fails(["simulate", "--floorplan", str(tmp_path / "no.geojson"), "--trajectory", str(wp),
+            "--out", str(tmp_path / "o")], capsys, "no.geojson")
+    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(ds)],
+           capsys, ds, "already exists")
+    assert not (tmp_path / "o").exists()
+
+
+def test_localize_bad_inputs(sim, tmp_path, capsys):
+    _, plan, _, ds = sim
+    out = tmp_path / "dec.jsonl"
+    _fails(["localize", str(tmp_path / "nowhere"), "--out", str(out)], capsys, "nowhere")
+    broken = tmp_path / "broken"
+    shutil.copytree(ds, broken)
+    (broken / "odometry.tum").write_text("0 1 2 3\n")
+    _fails(["localize", str(broken), "--out", str(out)], capsys, broken / "odometry.tum")
+    shutil.rmtree(broken)
+    shutil.copytree(ds, broken)
+    scan = sorted((broken / "scans").iterdir())[3]
+    scan.rename(scan.with_name("99999.pcd"))
+    _fails(["localize", str(broken), "--out", str(out)], capsys, "99999.pcd")
+    _fails(["localize", str(ds), "--floorplan", str(tmp_path / "x.ifc"), "--out", str(out)],
+           capsys, "x.ifc")
+    _fails(["localize", "--bag", str(tmp_path / "none.bag"), "--floorplan", str(plan), "--out",
+            str(out)], capsys, "none.bag")
+    _fails(["localize", "--bag", str(tmp_path / "none.bag"), "--out", str(out)], capsys,
+           "--floorplan")
+    _fails(["localize", str(ds), "--d-s", "-1", "--out", str(out)], capsys, "--d-s")
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".dec")]
+
+
+def test_evaluate_bad_inputs(sim, tmp_path, capsys):
+    _, _, _, ds = sim
+    nogt = tmp_path / "nogt"
+    shutil.copytree(ds, nogt)
+    (nogt / "groundtruth.tum").unlink()
+    dec = tmp_path / "dec.jsonl"
+    dec.write_text(json.dumps({"k": 1, "t": 12.0, "state": "DEFER", "anchor": None,
+                               "symmetry": None, "tau": None, "B1": 0, "B2": 0, "margin": 0})
+                   + "\n")
+    _fails(["evaluate", str(nogt), "--decisions", str(dec)], capsys, "groundtruth.tum")
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"k": 1, "state": "MAYBE"}\n')
+    _fails(["evaluate", str(ds), "--decisions", str(bad)], capsys, f"{bad}:1")
+    late = tmp_path / "late.jsonl"
+    late.write_text(dec.read_text().replace("12.0", "1e6"))
+    _fails(["evaluate", str(ds), "--decisions", str(late)], capsys, late, "t=")
+
+
+def test_waypoints_header_and_comments(tmp_path):
+    from mfcl_jax.pipeline import read_waypoints
+
+    p = tmp_path / "w.csv"
+    p.write_text("# a comment\nx, y\n1, 2\n\n3,4\n")
+    np.testing.assert_allclose(read_waypoints(p), [[1, 2], [3, 4]])

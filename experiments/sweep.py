@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import sys
+from pathlib import Path
 
 import hydra
 from omegaconf import DictConfig
@@ -46,6 +47,11 @@ def main(cfg: DictConfig) -> None:
         study.out = HydraConfig.get().runtime.output_dir
     tabs = run_study(study)
     print(f"wrote {len(tabs)} tables to {study.out}/")
+    if Path(study.out).resolve() == Path("results").resolve():
+        from mfcl_jax.study.readme import update_readme
+
+        names = update_readme("README.md", study.out)
+        print(f"README.md: refreshed {len(names)} generated tables")
 
 
 if __name__ == "__main__":

@@ -1,9 +1,12 @@
-"""Front-end tests: registration, equivariance, symmetry, jit, traces, bad inputs, CSV."""
+"""Front-end tests: registration, equivariance, symmetry, jit, traces, refinement, sampling,
+common shape buckets, bad inputs, CSV."""
 
 from __future__ import annotations
 
 import math
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from _frontend_synth import batch, make_submap
@@ -12,16 +15,20 @@ from shapely.geometry import box
 from mfcl_jax import se2
 from mfcl_jax.batch import SubmapBatch
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
-from mfcl_jax.floorplan.raster import Rasters, pad_to
+from mfcl_jax.floorplan.raster import Rasters, bilinear, pad_to
 from mfcl_jax.floorplan.scenes import get_scene
 from mfcl_jax.frontend import (
     FrontendParams,
     build_features,
+    common_features,
+    features,
+    hough,
     load_candidates_csv,
     make_register,
-    register,
+    refine,
     registry,
     sanitize_submaps,
+    verify,
 )
 from mfcl_jax.frontend.features import floorplan_corners
 
@@ -112,19 +119,76 @@ def test_symmetric_bays_yield_alias_candidates():
         assert hits(c, 0, alias).any(), f"no candidate in the bay shifted by {k} pitch"
 
 
-@pytest.mark.slow
 def test_jit_and_no_jit_agree(asym):
+    """Each stage kernel, eager vs jitted, on a tiny submap (the whole eager pipeline costs
+    ~30 s of per-op dispatch; the jitted pipeline is covered by the other tests)."""
     fp, subs, _, _ = asym
-    small = FrontendParams(J=8, n_hough=16, hough_points=256, verify_points=128,
-                           refine_points=64, refine_steps=5, max_votes=128, min_line_pts=8)
-    b = batch(subs[:1], 1024)
-    f = build_features(fp, small)
-    c_jit = make_register(small)(b, f)
-    c_eager = register(b, f, small)
-    np.testing.assert_array_equal(np.asarray(c_jit.mask), np.asarray(c_eager.mask))
-    np.testing.assert_allclose(np.asarray(c_jit.pose), np.asarray(c_eager.pose), atol=2e-3)
-    np.testing.assert_allclose(np.asarray(c_jit.score), np.asarray(c_eager.score), atol=1e-4)
-    assert hits(c_jit, 0, subs[0][2]).any()
+    tiny = FrontendParams(J=4, n_hough=8, n_prescreen=16, max_votes=64, hough_points=192,
+                          n_lines=8, n_corners=8, refine_steps=3, min_line_pts=8)
+    pts, org, Y = subs[0]
+    pts, org, ok = pts[::8][:192], org[::8][:192], np.ones(192, bool)
+    f = feats_for(fp)
+    plan = (f.corner_pos, f.corner_a1, f.corner_a2, f.corner_kind, f.corner_valid)
+
+    def stages(pts, org, ok):
+        lines = features.detect_lines(pts, org, ok, tiny)
+        corners = features.detect_corners(lines, ok, tiny)
+        peaks, _, peak_ok, _, _ = hough.vote(*hough.corner_votes(corners, plan, tiny), tiny)
+        y = jnp.concatenate([peaks[:3], jnp.asarray(Y, jnp.float32)[None] + 0.05], 0)
+        q, q_ok = verify.free_samples(pts, org, ok, 2, 0.3)
+        s = jax.vmap(lambda p: verify.score(p, pts, ok, q, q_ok, f, 0.07, 1.0))(y)
+        return lines["u"], corners["pos"], peaks, peak_ok, s, refine.refine(y, pts, ok, f, tiny)
+
+    eager, jitted = stages(pts, org, ok), jax.jit(stages)(pts, org, ok)
+    for a, b in zip(eager, jitted, strict=True):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=2e-3, rtol=1e-4)
+    assert np.asarray(eager[3]).any()
+
+
+def test_sample_matches_bilinear_and_its_gradient(asym):
+    fp = asym[0]
+    r = fp.rasterize(0.10)
+    sdf, _ = verify.plan_fields(fp, r, 0.05)
+    f4 = jnp.asarray(verify.stack4(sdf, verify.FAR))
+    xy = np.random.default_rng(1).uniform([-1.5, -1.5], [17.5, 9.5], (200, 2)).astype(np.float32)
+    v, g = verify.sample(r.origin, r.res, f4, xy, verify.FAR, grad=True)
+    ref = bilinear(r.to_jax(), np.asarray(sdf), xy, verify.FAR)
+    np.testing.assert_allclose(np.asarray(v), np.asarray(ref), rtol=1e-4, atol=1e-5)
+    auto = jax.vmap(jax.grad(lambda p: verify.sample(r.origin, r.res, f4, p, verify.FAR)))(xy)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(auto), atol=1e-4)
+    # Exact near walls: a point 3 cm off a wall face (x = 0.1) reads 3 cm, inside reads < 0.
+    np.testing.assert_allclose(
+        verify.sample(r.origin, r.res, f4, np.float32([[0.13, 4.0], [0.05, 4.0]]), 10.0),
+        [0.03, -0.05], atol=1e-3)
+
+
+def test_refinement_improves_the_score_and_the_pose(asym):
+    fp, subs, _, _ = asym
+    pts, _, Y = subs[0]
+    f = feats_for(fp)
+    ok = np.ones(len(pts), bool)
+    off = np.array([[0.07, -0.05, math.radians(0.8)], [-0.12, 0.03, math.radians(-1.5)]])
+    y0 = (Y + off).astype(np.float32)
+    y1 = jax.jit(lambda y: refine.refine(y, pts, ok, f, PARAMS))(y0)
+    s = jax.vmap(lambda y: verify.occupancy(y, pts, ok, f, PARAMS.sigma_occ))
+    assert np.all(np.asarray(s(y1)) > np.asarray(s(y0)))
+    dxy, dth = se2.distance_pair(y1, Y.astype(np.float32))
+    assert np.all(np.asarray(dxy) < 0.01), dxy
+    assert np.all(np.asarray(dth) < math.radians(0.1)), dth
+
+
+def test_common_features_one_trace_for_both_buildings():
+    fps = [get_scene(n).floorplan for n in ("three_rooms", "symmetric_bays")]
+    fa, fb = common_features(fps, PARAMS)
+    shapes = lambda f: [np.shape(a) for a in jax.tree.leaves(f)]  # noqa: E731
+    assert shapes(fa) == shapes(fb)
+    sub = make_submap(fps[1], (8.8, 3.0), (12.8, 4.4), 0.3, n_beams=240)
+    b = pad_batch([sub])
+    before = registry.TRACE_COUNT[0]
+    ca, cb = REG(b, fa), REG(b, fb)
+    assert registry.TRACE_COUNT[0] - before == 1
+    assert ca.pose.shape == cb.pose.shape == (N, PARAMS.J, 3)
+    assert hits(cb, 0, sub[2], 0.1, 1.0)[0]  # padding keeps the plan in place
 
 
 def test_one_trace_for_every_batch_of_a_shape(asym):

@@ -28,10 +28,24 @@ import shapely
 
 from mfcl_jax import se2
 
-__all__ = ["subsample", "detect_lines", "detect_corners", "floorplan_corners"]
+__all__ = ["compact", "subsample", "detect_lines", "detect_corners", "floorplan_corners"]
 
 
-def subsample(points, origins, mask, n: int):
+def compact(points, origins, mask):
+    """Moves the valid points (finite, masked in) to the front, scan order kept.
+
+    Returns:
+        ``(points, origins, mask)`` of the same shapes; invalid slots hold zeros.
+    """
+    valid = mask & jnp.all(jnp.isfinite(points), -1) & jnp.all(jnp.isfinite(origins), -1)
+    order = jnp.argsort(~valid, stable=True)
+    ok = valid[order]
+    pts = jnp.where(ok[:, None], jnp.nan_to_num(points[order]), 0.0)
+    org = jnp.where(ok[:, None], jnp.nan_to_num(origins[order]), 0.0)
+    return pts, org, ok
+
+
+def subsample(points, origins, mask, n: int, compacted: bool = False):
     """Deterministic strided subsample of the valid points (scan order kept).
 
     Args:
@@ -39,12 +53,16 @@ def subsample(points, origins, mask, n: int):
         origins: ``(P, 2)`` sensor origins of the points.
         mask: ``(P,)`` bool.
         n: static output size.
+        compacted: the input already went through ``compact`` (skips a sort of ``P``).
 
     Returns:
         ``(pts (n, 2), org (n, 2), ok (n,), n_valid)``; invalid slots hold zeros.
     """
-    valid = mask & jnp.all(jnp.isfinite(points), -1) & jnp.all(jnp.isfinite(origins), -1)
-    order = jnp.argsort(~valid, stable=True)
+    if compacted:
+        valid, order = mask, jnp.arange(points.shape[0])
+    else:
+        valid = mask & jnp.all(jnp.isfinite(points), -1) & jnp.all(jnp.isfinite(origins), -1)
+        order = jnp.argsort(~valid, stable=True)
     n_valid = jnp.sum(valid)
     stride = jnp.maximum(n_valid.astype(jnp.float32) / n, 1.0)
     idx = jnp.floor(jnp.arange(n, dtype=jnp.float32) * stride).astype(jnp.int32)

@@ -1,59 +1,75 @@
-"""Continuous refinement of candidate poses on the smooth verification score (optax adam).
+"""Continuous refinement of candidate poses: reweighted Gauss-Newton on the verification score.
 
-The Hough cell (``cell`` m, 1 deg) bounds the accuracy of a voted pose; gradient ascent on the
-bilinear occupancy kernel (``verify.smooth_occupancy``, sigma ``sigma_refine``) removes that
-bound. The heading is optimised in metres of arc at
-``yaw_lever`` m (``theta * yaw_lever``) so adam's per-coordinate step sizes are comparable.
+Maximising the occupancy term of ``verify.score``, ``mean_k exp(-d(Y p_k)^2 / 2 sigma^2)`` with
+``d`` the bilinear signed wall-surface distance, is a robust (Welsch) least-squares problem in
+the residuals ``d(Y p_k)``: iteratively reweighted Gauss-Newton with weights
+``exp(-d^2 / 2 sigma^2)`` ascends exactly that objective, and converges in a handful of steps
+where first-order ascent needs tens. ``sigma`` shrinks geometrically from ``sigma_refine``
+(capture range of a Hough peak, ~0.5 m / 2 deg) to ``sigma_occ`` (the scoring width) over the
+first half of the steps and stays there, so the final steps optimise the very score that later
+decides whether the refined pose is kept. Steps are damped (Levenberg) and clipped to
+``refine_max_step`` metres and ``10 x refine_max_step`` degrees; a direction that no wall
+constrains (a corridor's axis) stays put instead of drifting.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import optax
+import numpy as np
 
 from mfcl_jax import se2
 from mfcl_jax.frontend import verify
 
-__all__ = ["refine"]
+__all__ = ["refine", "sigma_schedule"]
 
 
-def refine(poses, pts, ok, rasters, reward_smooth, p):
+def sigma_schedule(p) -> np.ndarray:
+    """``(refine_steps,)`` kernel widths: geometric ``sigma_refine -> sigma_occ``, then flat."""
+    n = p.refine_steps
+    k = max(1, n // 2)
+    s = np.geomspace(p.sigma_refine, p.sigma_occ, k) if k > 1 else np.array([p.sigma_occ])
+    return np.concatenate([s, np.full(n - k, p.sigma_occ)]).astype(np.float32)
+
+
+def refine(poses, pts, ok, feats, p):
     """Refines ``(J, 3)`` poses of one submap; returns refined ``(J, 3)`` poses.
 
     Args:
         poses: ``(J, 3)`` initial candidates.
         pts, ok: ``(n, 2)`` occupied points and mask (submap frame).
-        rasters: floor-plan ``Rasters`` (grid geometry).
-        reward_smooth: ``(H, W)`` occupancy kernel at ``sigma_refine``.
-        p: ``FrontendParams`` (``refine_steps``, ``refine_lr``, ``sigma_refine``...).
+        feats: ``FloorplanFeatures`` (``sdf4`` and the raster geometry).
+        p: ``FrontendParams`` (``refine_steps``, ``sigma_refine``, ``sigma_occ``,
+            ``refine_max_step``).
     """
-    scale = jnp.asarray([1.0, 1.0, p.yaw_lever])
-    opt = optax.adam(optax.cosine_decay_schedule(p.refine_lr, p.refine_steps, alpha=0.1))
+    r = feats.rasters
+    okf = ok.astype(jnp.float32)
+    max_xy = p.refine_max_step
+    max_th = np.radians(10.0 * p.refine_max_step)
 
-    def loss(z, pose0):
-        pose = pose0 + z / scale
-        return -verify.smooth_occupancy(pose, pts, ok, rasters, reward_smooth)
+    def step(pose, sigma):
+        c, s = jnp.cos(pose[2]), jnp.sin(pose[2])
+        w_pts = se2.apply(pose, pts)
+        d, g = verify.sample(r.origin, r.res, feats.sdf4, w_pts, verify.FAR, grad=True)
+        # d(world point)/d(theta) = R'(theta) p
+        dth = jnp.stack([-s * pts[:, 0] - c * pts[:, 1], c * pts[:, 0] - s * pts[:, 1]], -1)
+        jac = jnp.concatenate([g, jnp.sum(g * dth, -1, keepdims=True)], -1)  # (n, 3)
+        wt = okf * jnp.exp(-0.5 * (d / sigma) ** 2)
+        h = jnp.einsum("n,ni,nj->ij", wt, jac, jac)
+        b = jnp.einsum("n,ni,n->i", wt, jac, d)
+        lam = 1e-3 * jnp.trace(h) / 3.0 + 1e-6
+        delta = -jnp.linalg.solve(h + lam * jnp.eye(3, dtype=h.dtype), b)
+        delta = jnp.where(jnp.all(jnp.isfinite(delta)), delta, 0.0)
+        nxy = jnp.sqrt(jnp.sum(delta[:2] ** 2))
+        delta = delta.at[:2].multiply(jnp.minimum(1.0, max_xy / jnp.maximum(nxy, 1e-9)))
+        delta = delta.at[2].set(jnp.clip(delta[2], -max_th, max_th))
+        new = pose + delta
+        return jnp.concatenate([new[:2], se2.wrap(new[2:])]), None
 
-    grad = jax.grad(loss)
+    sig = jnp.asarray(sigma_schedule(p))
 
     def one(pose0):
-        z0 = jnp.zeros(3)
-
-        def step(carry, _):
-            z, st = carry
-            g = grad(z, pose0)
-            g = jnp.where(jnp.isfinite(g), g, 0.0)
-            # optax mixes python floats and int32 step counts: allow standard promotion
-            # here even when the caller runs with strict promotion.
-            with jax.numpy_dtype_promotion("standard"):
-                upd, st = opt.update(g, st, z)
-            return (optax.apply_updates(z, upd), st), None
-
-        with jax.numpy_dtype_promotion("standard"):
-            st0 = opt.init(z0)
-        (z, _), _ = jax.lax.scan(step, (z0, st0), None, length=p.refine_steps)
-        pose = pose0 + z / scale
-        return jnp.concatenate([pose[:2], se2.wrap(pose[2:])])
+        pose, _ = jax.lax.scan(step, pose0, sig)
+        return pose
 
     return jax.vmap(one)(poses)

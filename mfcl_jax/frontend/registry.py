@@ -2,12 +2,20 @@
 host-side input hygiene, and a CSV adapter for external front-ends.
 
 Pipeline per submap (vmapped over the batch axis): subsample -> line Hough -> corners ->
-corner-pair pose votes -> yaw slabs + xy accumulators -> top ``n_hough`` cells -> verify ->
-adam refinement -> re-score -> sort + dedupe -> top ``J``.
+corner-pair pose votes -> top ``n_prescreen`` accumulator peaks -> cheap score on
+``prescreen_points`` points -> best ``n_hough`` -> full score -> best ``J`` -> Gauss-Newton
+refinement -> re-score -> keep the refined pose where the score improved -> sort + dedupe.
+Every score is the same continuous ``verify.score`` at width ``sigma_occ``.
+
+Why a prescreen: a corner-pair vote carries one unit, so the peaks of a submap whose corners are
+mostly spurious (door jambs, clutter, walls cut by the 10 m crop) tie at one or two votes, and
+ranking them by count drops the true pose at random. Scoring every peak on a small subsample is
+cheap and ranks by what the scan actually shows.
 
 All sizes and thresholds live in ``FrontendParams`` (frozen, hashable): they are static, so a
 change recompiles. ``make_register(params)`` jits once per (params, shape bucket); call the
-returned function for every batch of that bucket.
+returned function for every batch of that bucket. ``common_features`` puts several buildings in
+one bucket.
 """
 
 from __future__ import annotations
@@ -24,13 +32,14 @@ import numpy as np
 
 from mfcl_jax import se2
 from mfcl_jax.batch import Candidates, SubmapBatch
-from mfcl_jax.floorplan.raster import Rasters
+from mfcl_jax.floorplan.raster import Rasters, pad_to
 from mfcl_jax.frontend import features, hough, refine, verify
 
 __all__ = [
     "FrontendParams",
     "FloorplanFeatures",
     "build_features",
+    "common_features",
     "register",
     "register_debug",
     "make_register",
@@ -73,34 +82,46 @@ class FrontendParams:
     nms_xy: float = 0.45
     nms_deg: float = 3.0
     max_votes: int = 512
-    n_hough: int = 64
-    # verification (nearest-cell lookups of host-precomputed kernels)
+    n_hough: int = 64  # peaks that get the full score
+    # prescreen: every accumulator peak (up to n_prescreen) scored on a small subsample
+    n_prescreen: int = 256
+    prescreen_points: int = 96
+    # verification: continuous score (bilinear signed distance), see verify.py
     verify_points: int = 512
     ray_samples: int = 2
     ray_stop: float = 0.30
-    sigma_occ: float = 0.10
+    sigma_occ: float = 0.07
     sigma_free: float = 0.05
     lambda_free: float = 1.0
-    # refinement (bilinear, occupancy term) of the top J verified candidates
-    refine_points: int = 128
-    refine_steps: int = 20
-    refine_lr: float = 0.03
-    sigma_refine: float = 0.20
-    yaw_lever: float = 5.0
+    # refinement of the top J: reweighted Gauss-Newton, sigma_refine -> sigma_occ
+    refine_points: int = 512
+    refine_steps: int = 10
+    sigma_refine: float = 0.30
+    refine_max_step: float = 0.2
+    # first-round adam settings: names kept so old configs still parse; setting them is an error
+    refine_lr: float | None = None
+    yaw_lever: float | None = None
     # final de-duplication of refined candidates
     dedupe_xy: float = 0.30
     dedupe_deg: float = 2.0
 
     def __post_init__(self):
-        if not 1 <= self.J <= self.n_hough:
+        for name in ("refine_lr", "yaw_lever"):
+            if getattr(self, name) is not None:
+                raise ValueError(f"FrontendParams: {name}={getattr(self, name)!r} is no longer "
+                                 "used (refinement is Gauss-Newton now); use refine_steps, "
+                                 "sigma_refine, refine_max_step")
+        if not 1 <= self.J <= self.n_hough <= self.n_prescreen <= self.max_votes:
             raise ValueError(
-                f"FrontendParams: need 1 <= J <= n_hough, got {self.J=}, {self.n_hough=}"
+                "FrontendParams: need 1 <= J <= n_hough <= n_prescreen <= max_votes, got "
+                f"{self.J=}, {self.n_hough=}, {self.n_prescreen=}, {self.max_votes=}"
             )
         for name in ("hough_points", "n_lines", "n_corners", "max_votes", "verify_points",
-                     "refine_points", "ray_samples"):
+                     "refine_points", "ray_samples", "prescreen_points", "refine_steps"):
             if getattr(self, name) < 1:
                 raise ValueError(f"FrontendParams: {name} must be >= 1, got {getattr(self, name)}")
-        for name in ("cell", "line_rho_res", "rho_max", "inlier_band", "sigma_occ", "sigma_free"):
+        for name in ("cell", "line_rho_res", "rho_max", "inlier_band", "sigma_occ", "sigma_free",
+                     "sigma_refine", "refine_max_step"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FrontendParams: {name} must be > 0, got {getattr(self, name)}")
 
@@ -111,16 +132,15 @@ class FloorplanFeatures:
 
     Attributes:
         rasters: ``Rasters`` (JAX arrays); grid geometry and the wall mask.
-        reward, penalty: ``(H, W)`` verification terms (``verify.kernels``).
-        reward_smooth: ``(H, W)`` occupancy kernel at ``sigma_refine`` for refinement.
+        sdf4: ``(H + 1, W + 1, 4)`` signed wall-surface distance, ``verify.stack4`` layout.
+        pen4: ``(H + 1, W + 1, 4)`` free-space penalty field, same layout.
         corner_pos: ``(C, 2)``; corner_a1, corner_a2: ``(C,)`` edge angles (rad);
         corner_kind: ``(C,)`` int32; corner_valid: ``(C,)`` bool.
     """
 
     rasters: Rasters
-    reward: jax.Array
-    penalty: jax.Array
-    reward_smooth: jax.Array
+    sdf4: jax.Array
+    pen4: jax.Array
     corner_pos: jax.Array
     corner_a1: jax.Array
     corner_a2: jax.Array
@@ -130,37 +150,66 @@ class FloorplanFeatures:
 
 jax.tree_util.register_dataclass(
     FloorplanFeatures,
-    data_fields=["rasters", "reward", "penalty", "reward_smooth", "corner_pos", "corner_a1",
-                 "corner_a2", "corner_kind", "corner_valid"],
+    data_fields=["rasters", "sdf4", "pen4", "corner_pos", "corner_a1", "corner_a2",
+                 "corner_kind", "corner_valid"],
     meta_fields=[],
 )
 
 
+def _pad_corners(corners, capacity: int):
+    pos, a1, a2, kind, valid = (np.asarray(c) for c in corners)
+    n = int(np.sum(valid)) if valid.size else 0
+    if np.any(valid[n:]):
+        raise ValueError("build_features: corners must be packed (valid ones first)")
+    if n > capacity:
+        raise ValueError(f"build_features: {n} corners exceed corner_capacity={capacity}")
+
+    def fit(v, fill):
+        out = np.full((capacity, *v.shape[1:]), fill, v.dtype)
+        k = min(len(v), capacity)
+        out[:k] = v[:k]
+        return out
+
+    return (fit(pos.reshape(-1, 2), 0), fit(a1.reshape(-1), 0), fit(a2.reshape(-1), 0),
+            fit(kind.reshape(-1), 0), fit(valid.reshape(-1), False))
+
+
 def build_features(fp, params: FrontendParams = FrontendParams(), res: float = 0.10,
-                   rasters: Rasters | None = None, corners=None) -> FloorplanFeatures:
+                   rasters: Rasters | None = None, corners=None, shape=None,
+                   n_rooms: int | None = None,
+                   corner_capacity: int | None = None) -> FloorplanFeatures:
     """Builds ``FloorplanFeatures`` from a ``Floorplan`` (or from given rasters + corners).
 
     Args:
-        fp: a ``Floorplan``, or None when ``rasters`` and ``corners`` are given.
+        fp: a ``Floorplan``, or None when ``rasters`` and ``corners`` are given (the signed
+            distance is then raster-based, accurate to half a cell).
         params: front-end parameters (kernel widths).
         res: raster resolution (m).
         rasters: optional precomputed (possibly padded, see ``raster.pad_to``) rasters.
         corners: optional ``(pos, a1, a2, kind, valid)`` as from ``features.floorplan_corners``.
+        shape: optional ``(H, W)`` raster bucket to pad to (``raster.pad_to``), with
+            ``n_rooms`` rooms; buildings with equal buckets share one compilation.
+        corner_capacity: optional padded corner count (same purpose).
     """
     if rasters is None:
+        if fp is None:
+            raise ValueError("build_features: need a Floorplan or rasters + corners")
         rasters = fp.rasterize(res=res)
     if corners is None:
-        corners = features.floorplan_corners(fp)
+        if fp is None:
+            raise ValueError("build_features: need a Floorplan or rasters + corners")
+        corners = features.floorplan_corners(fp, capacity=corner_capacity)
     rasters = rasters.to_numpy()
-    reward, penalty = verify.kernels(rasters.dist, rasters.inside, params.sigma_occ,
-                                     params.sigma_free)
-    smooth, _ = verify.kernels(rasters.dist, rasters.inside, params.sigma_refine, 1.0)
+    if shape is not None or n_rooms is not None:
+        rasters = pad_to(rasters, tuple(shape or rasters.shape), n_rooms)
+    if corner_capacity is not None:
+        corners = _pad_corners(corners, corner_capacity)
+    sdf, pen = verify.plan_fields(fp, rasters, params.sigma_free)
     pos, a1, a2, kind, valid = (np.asarray(c) for c in corners)
     return FloorplanFeatures(
         rasters=rasters.to_jax(),
-        reward=jnp.asarray(reward),
-        penalty=jnp.asarray(penalty),
-        reward_smooth=jnp.asarray(smooth),
+        sdf4=jnp.asarray(verify.stack4(sdf, verify.FAR)),
+        pen4=jnp.asarray(verify.stack4(pen, 1.0)),
         corner_pos=jnp.asarray(pos, jnp.float32).reshape(-1, 2),
         corner_a1=jnp.asarray(a1, jnp.float32).reshape(-1),
         corner_a2=jnp.asarray(a2, jnp.float32).reshape(-1),
@@ -169,48 +218,75 @@ def build_features(fp, params: FrontendParams = FrontendParams(), res: float = 0
     )
 
 
+def common_features(floorplans, params: FrontendParams = FrontendParams(), res: float = 0.10,
+                    multiple: int = 64) -> list[FloorplanFeatures]:
+    """Features of several buildings padded to one shape bucket (one compilation for all).
+
+    Args:
+        floorplans: sequence of ``Floorplan``.
+        params: front-end parameters.
+        res: raster resolution (m).
+        multiple: raster sides and the corner capacity are rounded up to a multiple of this.
+
+    Returns:
+        One ``FloorplanFeatures`` per floor plan, all with equal array shapes.
+    """
+    fps = list(floorplans)
+    if not fps:
+        raise ValueError("common_features: no floor plans given")
+    rs = [fp.rasterize(res=res) for fp in fps]
+    up = lambda n: max(multiple, -(-n // multiple) * multiple)  # noqa: E731
+    shape = (up(max(r.shape[0] for r in rs)), up(max(r.shape[1] for r in rs)))
+    n_rooms = max(r.n_rooms for r in rs)
+    cap = up(max(len(fp.corners[0]) for fp in fps))
+    return [build_features(fp, params, res, rasters=r, shape=shape, n_rooms=n_rooms,
+                           corner_capacity=cap) for fp, r in zip(fps, rs, strict=True)]
+
+
 def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendParams):
     TRACE_COUNT[0] += 1  # Python side effect: runs at trace time only
-    pts, org, ok, n_valid = features.subsample(points, origins, mask, p.hough_points)
+    # One sort of the P points; every later subsample is a strided gather.
+    points, origins, mask = features.compact(points, origins, mask)
+    sub = partial(features.subsample, points, origins, mask, compacted=True)
+    pts, org, ok, n_valid = sub(p.hough_points)
     lines = features.detect_lines(pts, org, ok, p)
     corners = features.detect_corners(lines, ok, p)
     plan = (feats.corner_pos, feats.corner_a1, feats.corner_a2, feats.corner_kind,
             feats.corner_valid)
     votes, w = hough.corner_votes(corners, plan, p)
-    pose0, _, cand_ok, _, _ = hough.vote(votes, w, p)
+    peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
 
-    r = feats.rasters
-    vp, vo, vok, _ = features.subsample(points, origins, mask, p.verify_points)
-    q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
+    def scorer(n):
+        vp, vo, vok, _ = sub(n)
+        q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
+        return jax.vmap(lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ,
+                                               p.lambda_free))
 
-    def scores(poses):
-        return jax.vmap(
-            lambda y: verify.score(y, vp, vok, q, q_ok, r, feats.reward, feats.penalty,
-                                   p.lambda_free)
-        )(poses)
-
-    has_walls = jnp.any(r.wall)
+    has_walls = jnp.any(feats.rasters.wall)
     reason = jnp.where(
         n_valid == 0, 1,
         jnp.where(n_valid < p.min_points, 2,
-                  jnp.where(~has_walls, 4, jnp.where(~jnp.any(cand_ok), 3, 0))),
+                  jnp.where(~has_walls, 4, jnp.where(~jnp.any(peak_ok), 3, 0))),
     ).astype(jnp.int32)
-    cand_ok &= reason == 0
+    peak_ok &= reason == 0
 
     def rank(poses, sc, ok, n):
         order = jnp.argsort(-jnp.where(ok, sc, -jnp.inf), stable=True)[:n]
         return poses[order], sc[order], ok[order]
 
-    # Verify all voted poses, refine the best J, re-score, re-sort.
-    pose0, sc0, ok0 = rank(pose0, scores(pose0), cand_ok, p.J)
-    rp, _, rok, _ = features.subsample(points, origins, mask, p.refine_points)
-    pose1 = refine.refine(pose0, rp, rok, r, feats.reward_smooth, p)
+    # Prescreen every peak, fully score the best n_hough, refine the best J.
+    pose_h, _, ok_h = rank(peaks, scorer(p.prescreen_points)(peaks), peak_ok, p.n_hough)
+    score = scorer(p.verify_points)
+    pose0, sc0, ok0 = rank(pose_h, score(pose_h), ok_h, p.J)
+    rp, _, rok, _ = sub(p.refine_points)
+    pose1 = refine.refine(pose0, rp, rok, feats, p)
     pose1 = jnp.where(jnp.all(jnp.isfinite(pose1), -1, keepdims=True), pose1, pose0)
-    sc1 = scores(pose1)
-    # Keep the refined pose only where it scores at least as well as the voted one.
-    better = sc1 >= sc0
+    sc1 = score(pose1)
+    # Keep the refined pose only where the same score improved.
+    better = sc1 > sc0
     pose1 = jnp.where(better[:, None], pose1, pose0)
     sc1 = jnp.where(better, sc1, sc0)
+    refined = pose1  # same order as pose0 (debug: per-candidate refinement gain)
     pose1, sc1, ok1 = rank(pose1, sc1, ok0, p.J)
     # A candidate that converged onto a better-ranked one is a duplicate.
     dxy, dth = se2.distance_pair(pose1[:, None, :], pose1[None, :, :])
@@ -218,8 +294,20 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
     earlier = jnp.arange(p.J)[None, :] < jnp.arange(p.J)[:, None]
     keep = ok1 & ~jnp.any(close & earlier & ok1[None, :], axis=1)
     pose1, sc1, keep = rank(pose1, sc1, keep, p.J)
+    debug = dict(pose0=pose0, refined=refined, ok0=ok0, n_lines=jnp.sum(lines["valid"]),
+                 n_corners=jnp.sum(corners["valid"]), walls=_wall_pairs(lines, p))
     return (jnp.where(keep[:, None], pose1, 0.0), jnp.where(keep, sc1, -jnp.inf), keep, reason,
-            pose0)
+            debug)
+
+
+def _wall_pairs(lines, p, min_count: float = 30.0):
+    """Whether two detected lines with >= ``min_count`` inliers each (on the Hough subsample)
+    cross at >= ``corner_min_angle_deg``: the submap sees two non-parallel walls."""
+    strong = lines["valid"] & (lines["count"] >= min_count)
+    u = lines["u"]
+    cr = jnp.abs(u[:, None, 0] * u[None, :, 1] - u[:, None, 1] * u[None, :, 0])
+    wide = cr >= math.sin(math.radians(p.corner_min_angle_deg))
+    return jnp.any(strong[:, None] & strong[None, :] & wide)
 
 
 def register(submaps: SubmapBatch, feats: FloorplanFeatures, params: FrontendParams) -> Candidates:
@@ -242,11 +330,13 @@ def register(submaps: SubmapBatch, feats: FloorplanFeatures, params: FrontendPar
 
 
 def register_debug(submaps: SubmapBatch, feats: FloorplanFeatures, params: FrontendParams):
-    """Like ``register`` but also returns the top-J voted poses before refinement ``(N, J, 3)``
-    (benchmarks compare pose errors before and after refinement)."""
+    """Like ``register`` but also returns a dict of per-submap internals: ``pose0 (N, J, 3)``
+    the verified poses before refinement, ``refined (N, J, 3)`` the same candidates after
+    refinement (same order; equal where refinement was rejected), ``ok0 (N, J)``,
+    ``n_lines``, ``n_corners`` and ``walls`` (two non-parallel walls seen) ``(N,)``."""
     fn = jax.vmap(partial(_register_one, feats=feats, p=params))
-    pose, score, mask, reason, pose0 = fn(submaps.points, submaps.origins, submaps.mask)
-    return Candidates(pose=pose, score=score, mask=mask, reason=reason), pose0
+    pose, score, mask, reason, debug = fn(submaps.points, submaps.origins, submaps.mask)
+    return Candidates(pose=pose, score=score, mask=mask, reason=reason), debug
 
 
 def make_register(params: FrontendParams = FrontendParams()):

@@ -1,31 +1,42 @@
-"""Occupancy-aware verification score of a candidate pose ``Y = ^B T_S``.
+"""Occupancy-aware verification score of a candidate pose ``Y = ^B T_S``, continuous in ``Y``.
 
-With ``d(.)`` the floor plan's wall distance field (bilinear, m), ``in(.)`` its footprint mask
-(bilinear in [0, 1]), submap points ``p_k`` (occupied) and free-space samples ``q_l`` taken along
-each ray sensor origin -> point, stopping ``ray_stop`` metres short of the point:
+With ``d(.)`` the floor plan's *signed* distance to the wall surface (m, negative inside wall
+solid, exact near walls), ``pen(.)`` a free-space penalty field, submap points ``p_k`` (occupied)
+and free-space samples ``q_l`` taken along each ray sensor origin -> point, stopping ``ray_stop``
+metres short of the point:
 
-    s(Y) = 1/|P| sum_k exp(-d(Y p_k)^2 / (2 sigma_occ^2))
-         - lambda_free / |Q| sum_l max(exp(-d(Y q_l)^2 / (2 sigma_free^2)), 1 - in(Y q_l))
+    s(Y; sigma) = 1/|P| sum_k exp(-d(Y p_k)^2 / (2 sigma^2))
+                - lambda_free / |Q| sum_l pen(Y q_l),
+    pen = max(exp(-max(d, 0)^2 / (2 sigma_free^2)), 1 - inside)
 
-The first term (in [0, 1]) rewards occupied points that land on plan walls. The second (in
-[0, lambda_free]) penalises space the LiDAR saw through that the plan calls wall or outside the
-building. Points occupied in the submap but free in the plan (furniture, as-built additions)
-only miss the reward; they are never penalised. Both per-cell terms are precomputed on the host
-(``kernels``) and sampled at the nearest cell (STSL scores on a grid too). ``refine.py`` ascends
-the occupancy term with a wider kernel (``sigma_refine``) sampled bilinearly
-(``smooth_occupancy``); the free-space term is flat almost everywhere (its kernel lives inside
-walls), so it contributes no useful gradient and is applied when re-scoring.
+The first term (in [0, 1]) rewards occupied points that land on plan wall *surfaces*. The second
+(in [0, lambda_free]) penalises space the LiDAR saw through that the plan calls wall or outside
+the building. Points occupied in the submap but free in the plan (furniture, as-built additions)
+only miss the reward; they are never penalised.
+
+Both fields are sampled bilinearly, so ``s`` is continuous and piecewise smooth in ``Y`` and
+resolves poses well below the 0.10 m raster cell. The kernel is applied *after* interpolating
+the signed distance (interpolating a kernel raster, or an unsigned distance, would flatten the
+peak at the wall surface to a cell-wide plateau). The same function ranks the voted poses,
+drives the refinement (``refine.py``, which maximises its first term by reweighted Gauss-Newton)
+and decides whether a refined pose is kept.
+
+Sampling cost: each field is stored as ``(H + 1, W + 1, 4)``, the four bilinear neighbours of
+every cell side by side (``stack4``), so one sample is a single gather of 4 contiguous floats.
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import shapely
+from scipy import ndimage
 
 from mfcl_jax import se2
-from mfcl_jax.floorplan.raster import bilinear, lookup
 
-__all__ = ["free_samples", "kernels", "score", "smooth_occupancy"]
+__all__ = ["FAR", "free_samples", "plan_fields", "stack4", "sample", "occupancy", "score"]
+
+FAR = 10.0  # signed distance read off the grid (m): no reward there
 
 
 def free_samples(pts, org, ok, n_samples: int, stop: float):
@@ -49,44 +60,103 @@ def free_samples(pts, org, ok, n_samples: int, stop: float):
     return q.reshape(-1, 2), q_ok.reshape(-1)
 
 
-def kernels(dist, inside, sigma_occ: float, sigma_free: float):
-    """Host-side per-cell terms of the score, so a kernel sample is one lookup.
+def plan_fields(fp, rasters, sigma_free: float, band: float = 0.6):
+    """Host: signed wall-surface distance and free-space penalty on the raster grid.
+
+    The sign comes from the raster's wall mask (cell-centre containment); the magnitude is the
+    exact distance to the wall-solid boundary for cells within ``band`` of it (when ``fp`` is
+    given), and the raster's Euclidean distance transform elsewhere.
 
     Args:
-        dist: ``(H, W)`` wall distance field (m); ``inside`` ``(H, W)`` footprint mask.
+        fp: ``Floorplan`` or None (then the distance is raster-based, +-half a cell).
+        rasters: NumPy ``Rasters`` (possibly padded).
+        sigma_free: width of the penalty kernel (m).
 
     Returns:
-        ``(reward (H, W), penalty (H, W))`` float32: ``exp(-d^2 / 2 sigma_occ^2)`` and
-        ``max(exp(-d^2 / 2 sigma_free^2), 1 - inside)``.
+        ``(sdf (H, W), penalty (H, W))`` float32.
     """
-    dist = np.asarray(dist, np.float64)
-    reward = np.exp(-0.5 * (dist / sigma_occ) ** 2)
-    penalty = np.maximum(np.exp(-0.5 * (dist / sigma_free) ** 2), 1.0 - np.asarray(inside, float))
-    return reward.astype(np.float32), penalty.astype(np.float32)
+    wall = np.asarray(rasters.wall, bool)
+    res = float(rasters.res)
+    out = np.asarray(rasters.dist, np.float64)
+    if wall.any():
+        inner = np.maximum(ndimage.distance_transform_edt(wall) * res - 0.5 * res, 0.0)
+        sdf = np.where(wall, -inner, out)
+    else:
+        sdf = out
+    if fp is not None and wall.any():
+        near = np.abs(sdf) < band
+        iy, ix = np.nonzero(near)
+        x = rasters.origin[0] + res * (ix + 0.5)
+        y = rasters.origin[1] + res * (iy + 0.5)
+        exact = shapely.distance(fp.wall_solid.boundary, shapely.points(x, y))
+        sdf[iy, ix] = np.where(wall[iy, ix], -exact, exact)
+    sdf = np.minimum(sdf, FAR)
+    pen = np.maximum(np.exp(-0.5 * (np.maximum(sdf, 0.0) / sigma_free) ** 2),
+                     1.0 - np.asarray(rasters.inside, float))
+    return sdf.astype(np.float32), pen.astype(np.float32)
 
 
-def score(pose, pts, ok, q, q_ok, rasters, reward, penalty, lam):
-    """Verification score of one pose (see module docstring), nearest-cell sampling.
+def stack4(grid, fill: float) -> np.ndarray:
+    """Host: ``(H, W)`` -> ``(H + 1, W + 1, 4)``; entry ``[i, j]`` holds the grid values at
+    ``(i - 1, j - 1), (i - 1, j), (i, j - 1), (i, j)`` (``fill`` off the grid)."""
+    g = np.pad(np.asarray(grid, np.float32), 1, constant_values=fill)
+    return np.stack([g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:]], -1)
+
+
+def sample(origin, res: float, field4, xy, fill: float, grad: bool = False):
+    """Bilinear sample of a ``stack4`` field at world points ``xy (*, 2)`` (one gather each).
+
+    Args:
+        origin: ``(2,)`` raster origin; ``res`` static cell size.
+        field4: ``(H + 1, W + 1, 4)`` from ``stack4``.
+        fill: value off the grid.
+        grad: also return the spatial gradient ``(*, 2)`` (per m).
+
+    Returns:
+        ``v (*,)`` or ``(v, g)``. Differentiable in ``xy`` either way.
+    """
+    f = (xy - origin) / res - 0.5
+    f0 = jnp.floor(f)
+    a = f - f0
+    i = f0.astype(jnp.int32) + 1
+    h, w = field4.shape[0], field4.shape[1]
+    ok = (i[..., 0] >= 0) & (i[..., 0] < w) & (i[..., 1] >= 0) & (i[..., 1] < h)
+    c = field4[jnp.clip(i[..., 1], 0, h - 1), jnp.clip(i[..., 0], 0, w - 1)]
+    c = jnp.where(ok[..., None], c, fill)
+    ax, ay = a[..., 0], a[..., 1]
+    lo = c[..., 0] + ax * (c[..., 1] - c[..., 0])
+    hi = c[..., 2] + ax * (c[..., 3] - c[..., 2])
+    v = lo + ay * (hi - lo)
+    if not grad:
+        return v
+    gx = (1 - ay) * (c[..., 1] - c[..., 0]) + ay * (c[..., 3] - c[..., 2])
+    return v, jnp.stack([gx, hi - lo], -1) / res
+
+
+def _mean(v, ok):
+    return jnp.sum(jnp.where(ok, v, 0.0)) / jnp.maximum(jnp.sum(ok).astype(v.dtype), 1.0)
+
+
+def occupancy(pose, pts, ok, feats, sigma):
+    """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1]."""
+    r = feats.rasters
+    d = sample(r.origin, r.res, feats.sdf4, se2.apply(pose, pts), FAR)
+    return _mean(jnp.exp(-0.5 * (d / sigma) ** 2), ok)
+
+
+def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
+    """Verification score ``s(Y; sigma)`` of one pose (module docstring).
 
     Args:
         pose: ``(3,)`` candidate ``^B T_S``.
         pts: ``(n, 2)`` occupied points (submap frame), ``ok`` their mask.
         q: ``(m, 2)`` free-space samples, ``q_ok`` their mask.
-        rasters: ``Rasters`` (for the grid geometry).
-        reward, penalty: ``(H, W)`` from ``kernels``.
-        lam: free-space weight ``lambda_free``.
+        feats: ``FloorplanFeatures`` (``sdf4``, ``pen4``, rasters geometry).
+        sigma: occupancy kernel width (m); lam: free-space weight ``lambda_free``.
 
     Returns:
         Scalar score in ``[-lam, 1]``; 0 when there are no points.
     """
-    occ = lookup(rasters, reward, se2.apply(pose, pts), 0.0)
-    s_occ = jnp.sum(jnp.where(ok, occ, 0.0)) / jnp.maximum(jnp.sum(ok).astype(occ.dtype), 1.0)
-    pen = lookup(rasters, penalty, se2.apply(pose, q), 1.0)
-    s_free = jnp.sum(jnp.where(q_ok, pen, 0.0)) / jnp.maximum(jnp.sum(q_ok).astype(pen.dtype), 1.0)
-    return s_occ - lam * s_free
-
-
-def smooth_occupancy(pose, pts, ok, rasters, reward_smooth):
-    """Occupancy term with bilinear sampling of a wider kernel: differentiable in ``pose``."""
-    occ = bilinear(rasters, reward_smooth, se2.apply(pose, pts), 0.0)
-    return jnp.sum(jnp.where(ok, occ, 0.0)) / jnp.maximum(jnp.sum(ok).astype(occ.dtype), 1.0)
+    r = feats.rasters
+    pen = sample(r.origin, r.res, feats.pen4, se2.apply(pose, q), 1.0)
+    return occupancy(pose, pts, ok, feats, sigma) - lam * _mean(pen, q_ok)

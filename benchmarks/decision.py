@@ -1,12 +1,16 @@
 """Decision-layer timing: every window x policy x threshold set of one run, and a full batch.
 
-Compile time is reported apart; run times are medians of repeated calls. Writes
-``results/bench_decision.csv``. Usage: ``python benchmarks/decision.py [--runs 100]``.
+Compile time is reported apart; run times are medians of repeated calls, as wall time and as
+process CPU time (all threads; steadier than wall time on a shared machine), with the 1-minute
+load average next to them. Cases: ``one_run`` and ``batch`` (S=4 threshold sets, J=64) and
+``study`` (the study's sweep: 120 runs, S=1, J=32). Writes ``results/bench_decision.csv``.
+Usage: ``python benchmarks/decision.py [--runs 100] [--cases one_run,batch,study]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import platform
 import sys
@@ -53,14 +57,16 @@ def synth_batch(R, K, J, T, seed=0):
 
 def bench(name, args, maps, params, var, reps, chunk):
     args = [jnp.asarray(a) for a in args]
-    t0 = time.perf_counter()
-    comp = evaluate.lower(*args, maps, params, var, run_chunk=chunk).compile()
-    t_compile = time.perf_counter() - t0
-    times = []
+    kw = {} if chunk is None else {"run_chunk": chunk}
+    t0, c0 = time.perf_counter(), time.process_time()
+    comp = evaluate.lower(*args, maps, params, var, **kw).compile()
+    t_compile, c_compile = time.perf_counter() - t0, time.process_time() - c0
+    times, cpu = [], []
     for _ in range(reps):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         jax.block_until_ready(comp(*args, maps, params, var))
         times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
     R, K = args[0].shape[:2]
     S, V = params.tau_c.shape[0], len(policy_names())
     med = float(np.median(times))
@@ -73,7 +79,9 @@ def bench(name, args, maps, params, var, reps, chunk):
         S=S,
         V=V,
         compile_s=t_compile,
+        compile_cpu_s=c_compile,
         median_s=med,
+        median_cpu_s=float(np.median(cpu)),
         per_decision_us=1e6 * med / (R * K * S * V),
         device=jax.devices()[0].device_kind,
         host=platform.node(),
@@ -88,15 +96,38 @@ def main():
     ap.add_argument("--T", type=int, default=256)
     ap.add_argument("--sets", type=int, default=4)
     ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--study-runs", type=int, default=120)
+    ap.add_argument("--study-J", type=int, default=32)
+    ap.add_argument("--cases", default="one_run,batch,study")
     ap.add_argument("--out", default="results/bench_decision.csv")
     a = ap.parse_args()
     maps = jax.tree.map(jnp.asarray, gate_maps(row_of_rooms()))
     params = DecisionParams.stack([DecisionParams(tau_c=t) for t in np.linspace(0.4, 0.7, a.sets)])
     var = variants()
-    rows = [
-        bench("one_run", synth_batch(1, a.windows, a.J, a.T), maps, params, var, a.reps, 1),
-        bench("batch", synth_batch(a.runs, a.windows, a.J, a.T, 1), maps, params, var, a.reps, 8),
-    ]
+    p1 = DecisionParams.stack([DecisionParams()])
+    cases = {
+        "one_run": lambda: bench(
+            "one_run", synth_batch(1, a.windows, a.J, a.T), maps, params, var, a.reps, 1
+        ),
+        "batch": lambda: bench(
+            "batch", synth_batch(a.runs, a.windows, a.J, a.T, 1), maps, params, var, a.reps, 8
+        ),
+        # the study's sweep: one threshold set, J=32, every policy
+        "study": lambda: bench(
+            "study",
+            synth_batch(a.study_runs, a.windows, a.study_J, a.T, 2),
+            maps,
+            p1,
+            var,
+            a.reps,
+            8,
+        ),
+    }
+    rows = []
+    for name in a.cases.split(","):
+        rows.append(cases[name]())
+        rows[-1]["load1"] = os.getloadavg()[0]
+        print(rows[-1], flush=True)
     df = pd.DataFrame(rows)
     pathlib.Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(a.out, index=False)

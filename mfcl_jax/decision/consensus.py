@@ -10,8 +10,17 @@
   tolerances are tested separately, never mixed into one norm.
 * ``B_m`` is the group size (one champion per submap, so distinct submaps per group). The
   winner is the largest group, ties to the group with the higher-scored leader;
-  ``margin = B1 - B2``; ``T*`` is the mean pose of the winner's champions (arithmetic xy,
-  circular yaw) and ``spread`` the largest planar distance of a member to ``T*``.
+  ``margin = B1 - B2``.
+* Two means of the winner (arithmetic xy, circular yaw), because odometry drifts and an anchor
+  is exact only near the time it was estimated:
+
+  - ``t_all``, the mean of *all* the winner's champions (the paper's ``T*``). It is the group's
+    centre: ``spread`` (largest planar distance of a member to it) and the group anchors that
+    the lattice test compares are all-member means.
+  - ``t_star``, the *reported* anchor: the mean of the winner's ``recent`` most recent
+    champions (largest window indices; ``recent <= 0`` takes them all, i.e. ``t_all``). It is
+    the anchor that is committed, so the winner's gate, its rooms spanned and the alias probe
+    use it too. Early, drifted members keep counting in ``B_m`` but cannot pull it away.
 """
 
 from __future__ import annotations
@@ -48,8 +57,9 @@ class Groups:
     b1: jax.Array
     b2: jax.Array
     margin: jax.Array
-    t_star: jax.Array  # (3,)
-    spread: jax.Array  # () max planar distance of winner members to T*
+    t_star: jax.Array  # (3,) reported anchor: mean of the winner's most recent champions
+    spread: jax.Array  # () max planar distance of winner members to t_all
+    t_all: jax.Array  # (3,) mean of all the winner's champions (the group centre)
 
 
 for _cls in (Champions, Groups):
@@ -102,8 +112,15 @@ def leader_groups(pose, weight, has, delta_xy, delta_theta):
     return jax.lax.fori_loop(0, m, body, init)
 
 
-def group(ch: Champions, delta_xy, delta_theta) -> Groups:
-    """Groups champions and summarises consensus (see the module docstring)."""
+def group(ch: Champions, delta_xy, delta_theta, recent=0) -> Groups:
+    """Groups champions and summarises consensus (see the module docstring).
+
+    Args:
+        ch: ``Champions`` of one prefix (window order along the first axis).
+        delta_xy, delta_theta: grouping tolerances (traced).
+        recent: ``()`` number of most recent winner champions averaged into ``t_star``
+            (traced; ``<= 0``: all of them).
+    """
     k = ch.pose.shape[0]
     assign, _, ng = leader_groups(ch.pose, ch.score, ch.has, delta_xy, delta_theta)
     onehot = (assign[None, :] == jnp.arange(k)[:, None]) & ch.has[None, :]  # (G, K)
@@ -113,7 +130,12 @@ def group(ch: Champions, delta_xy, delta_theta) -> Groups:
     b1 = size[winner]
     b2 = jnp.max(jnp.where(jnp.arange(k) == winner, 0, size))
     members = onehot[winner]
-    t_star = anchor[winner]
-    dxy, _ = se2.distance_pair(ch.pose, t_star)
+    t_all = anchor[winner]
+    dxy, _ = se2.distance_pair(ch.pose, t_all)
     spread = jnp.max(jnp.where(members, dxy, 0.0))
-    return Groups(assign, size, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread)
+    # members after window w (window order = time order): rank 0 is the latest member
+    later = jnp.cumsum(members[::-1].astype(jnp.int32))[::-1] - members.astype(jnp.int32)
+    recent = jnp.asarray(recent, jnp.float32)
+    take = members & ((later.astype(jnp.float32) < recent) | (recent <= 0))
+    t_star = se2.mean_pose(ch.pose, take.astype(ch.pose.dtype))
+    return Groups(assign, size, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread, t_all)

@@ -3,9 +3,12 @@ policy variant.
 
 Layout of the result: a ``Decisions`` whose leaves have leading axes ``(R, K, S, V)``, with
 ``V = len(ours variants) + len(BASELINES)`` (``policy_names`` gives the order). Per run the
-gate table ``(K, J, K)`` is computed once (it does not depend on thresholds); our variants are
-``vmap``ped over (threshold set, prefix, variant) and the baselines over threshold sets. Runs
-go through ``lax.map`` in chunks of ``run_chunk`` so memory stays bounded on a CPU.
+gate table ``(K, J, K)`` is computed once (it does not depend on thresholds). Per (threshold
+set, prefix) the decision core (champions, groups, lattice over all groups, alias probe) is
+computed once per gate mode (on, off) and shared by every variant with that gate flag; the
+variants' floors and probe flag are applied after (``state.finish``). The baselines are
+``vmap``ped over threshold sets. Runs go through ``lax.map`` in chunks of ``run_chunk`` so
+memory stays bounded on a CPU.
 """
 
 from __future__ import annotations
@@ -20,7 +23,14 @@ import pandas as pd
 from mfcl_jax.decision import gate as gate_mod
 from mfcl_jax.decision import lattice, policies
 from mfcl_jax.decision.anchors import candidate_anchors, per_run
-from mfcl_jax.decision.state import REASONS, STATE_NAMES, DecisionParams, Decisions, decide_prefix
+from mfcl_jax.decision.state import (
+    REASONS,
+    STATE_NAMES,
+    DecisionParams,
+    Decisions,
+    finish,
+    prefix_core,
+)
 
 __all__ = ["evaluate_run", "evaluate", "evaluate_batch", "policy_names", "to_frame", "TRACES"]
 
@@ -58,32 +68,27 @@ def evaluate_run(
     kk = H.shape[0]
     mask = mask & window_mask[:, None]
     table = gate_mod.prefix_table(maps, H, traj, traj_mask, window_end)  # (K, J, Kp)
+    modes = jnp.asarray([True, False])  # gate on / off: the only flag the core depends on
 
-    def ours_one(p, k, ug, up, bm, dm):
-        bm = jnp.where(bm < 0, p.b_min, bm)
-        dm = jnp.where(dm < 0, p.delta_min, dm)
-        return decide_prefix(
-            k,
-            H,
-            score,
-            mask,
-            table[:, :, k],
-            traj,
-            traj_mask,
-            window_end[k],
-            maps,
-            p,
-            ug,
-            up,
-            bm,
-            dm,
-            n_cap,
-        )
+    def ours_prefix(p, k):
+        def core(ug):
+            cons = table[:, :, k]
+            end = window_end[k]
+            return prefix_core(k, H, score, mask, cons, traj, traj_mask, end, maps, p, ug, n_cap)
 
-    f = jax.vmap(ours_one, in_axes=(None, None, 0, 0, 0, 0))  # variants
-    f = jax.vmap(f, in_axes=(None, 0, None, None, None, None))  # prefixes
-    f = jax.vmap(f, in_axes=(0, None, None, None, None, None))  # threshold sets
-    ours = f(params, jnp.arange(kk), var.use_gate, var.use_probe, var.b_min, var.delta_min)
+        cores = jax.vmap(core)(modes)
+
+        def one(ug, up, bm, dm):
+            bm = jnp.where(bm < 0, p.b_min, bm)
+            dm = jnp.where(dm < 0, p.delta_min, dm)
+            c = jax.tree.map(lambda x: jnp.where(ug, x[0], x[1]), cores)
+            return finish(c, maps, p, ug, up, bm, dm)
+
+        return jax.vmap(one)(var.use_gate, var.use_probe, var.b_min, var.delta_min)
+
+    f = jax.vmap(ours_prefix, in_axes=(None, 0))  # prefixes
+    f = jax.vmap(f, in_axes=(0, None))  # threshold sets
+    ours = f(params, jnp.arange(kk))
     base = jax.vmap(lambda p: policies.baselines(H, score, mask, table, window_mask, p))(params)
     ours = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), ours)  # (K, S, V0, ...)
     base = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), base)  # (K, S, 4, ...)

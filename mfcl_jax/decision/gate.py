@@ -21,8 +21,8 @@ Structural consistency over the samples ``t <= end`` of a prefix:
   compare ``c`` with thresholds.
 
 Every statistic is an integer count accumulated along the trajectory, so the table of all
-prefixes is one cumulative sum per anchor (``prefix_table``) and the single-prefix evaluation
-(``consistency_at``) gives bit-identical numbers.
+prefixes is one cumulative sum per anchor (``prefix_table``) and the
+single-prefix evaluation (``consistency_at``) gives bit-identical numbers.
 """
 
 from __future__ import annotations
@@ -33,8 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax import se2
-from mfcl_jax.floorplan.raster import Rasters, lookup
+from mfcl_jax.floorplan.raster import Rasters
 
 __all__ = [
     "DOOR",
@@ -42,7 +41,9 @@ __all__ = [
     "OUTSIDE",
     "GateMaps",
     "gate_maps",
+    "labels",
     "events",
+    "walk_counts",
     "consistency_from_counts",
     "prefix_table",
     "consistency_at",
@@ -207,6 +208,33 @@ def gate_maps(
     return GateMaps(np.asarray(r.origin, np.float32), label, adj, o, om, g, gm, float(r.res))
 
 
+def labels(maps: GateMaps, H, traj):
+    """Cell label of every trajectory sample mapped by every anchor.
+
+    Args:
+        maps: ``GateMaps``.
+        H: ``(..., 3)`` anchors.
+        traj: ``(T, 3)`` odometry poses in L.
+
+    Returns:
+        ``(..., T)`` int32 labels (``OUTSIDE`` off the grid).
+    """
+    H, traj = jnp.asarray(H), jnp.asarray(traj)
+    # Same arithmetic as se2.apply + raster.lookup, but the heading trig is taken once per
+    # anchor and the raster is read by a flat 1-D gather (several times faster on a CPU).
+    c, s = jnp.cos(H[..., 2:3]), jnp.sin(H[..., 2:3])
+    vx, vy = traj[:, 0], traj[:, 1]
+    x = c * vx - s * vy + H[..., 0:1]
+    y = s * vx + c * vy + H[..., 1:2]
+    ix = jnp.round((x - maps.origin[0]) / maps.res - 0.5).astype(jnp.int32)
+    iy = jnp.round((y - maps.origin[1]) / maps.res - 0.5).astype(jnp.int32)
+    h, w = maps.label.shape[-2:]
+    ok = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+    flat = jnp.where(ok, iy * w + ix, 0)
+    val = maps.label.reshape(-1).at[flat].get(mode="promise_in_bounds")
+    return jnp.where(ok, val, OUTSIDE)
+
+
 def events(maps: GateMaps, H, traj, valid):
     """Per-sample gate events of trajectories mapped by anchors.
 
@@ -220,12 +248,10 @@ def events(maps: GateMaps, H, traj, valid):
         ``(label, valid, free, trans, ok)``, each ``(..., T)``: cell label, sample validity,
         free-space sample, node change, node change along a graph edge.
     """
-    H = jnp.asarray(H)
-    xy = se2.apply(H, jnp.asarray(traj)[..., :2])  # (..., T, 2)
-    fake = Rasters(maps.origin, None, None, None, None, None, None, maps.res)
-    label = lookup(fake, maps.label, xy, OUTSIDE)
+    label = labels(maps, H, traj)
     valid = jnp.broadcast_to(jnp.asarray(valid, bool), label.shape)
-    n_out = maps.adjacency.shape[-1] - 1
+    n_node = maps.adjacency.shape[-1]
+    n_out = n_node - 1
     is_node = (label >= 0) | (label == OUTSIDE)
     node = jnp.where(label >= 0, label, n_out)
     t = jnp.arange(label.shape[-1], dtype=jnp.int32)
@@ -233,9 +259,48 @@ def events(maps: GateMaps, H, traj, valid):
     prev = jnp.concatenate([jnp.full_like(last[..., :1], -1), last[..., :-1]], axis=-1)
     prev_node = jnp.take_along_axis(node, jnp.maximum(prev, 0), axis=-1)
     trans = valid & is_node & (prev >= 0) & (prev_node != node)
-    ok = trans & maps.adjacency[prev_node, node]
+    adj = maps.adjacency.reshape(-1).at[prev_node * n_node + node].get(mode="promise_in_bounds")
+    ok = trans & adj
     free = valid & ((label >= 0) | (label == DOOR))
     return label, valid, free, trans, ok
+
+
+def walk_counts(maps: GateMaps, label, valid, keep_all: bool = False):
+    """Running counts ``(n_valid, n_free, n_trans, n_ok)`` of the walk through ``label``.
+
+    The same statistics as ``events`` summed over ``t``, accumulated by one sequential pass
+    over the samples (``lax.scan``, vectorised over the anchors): on a CPU this is several
+    times cheaper than the log-depth cumulative max / sums it replaces.
+
+    Args:
+        maps: ``GateMaps``.
+        label: ``(..., T)`` labels (``labels``); valid: ``(T,)`` or ``(..., T)`` bool.
+        keep_all: return the counts after every sample instead of after the last one.
+
+    Returns:
+        ``(4, ...)`` int32 counts, or ``(T, 4, ...)`` with ``keep_all``.
+    """
+    n_node = maps.adjacency.shape[-1]
+    adj = maps.adjacency.reshape(-1)
+    lab_t = jnp.moveaxis(label, -1, 0)
+    val_t = jnp.moveaxis(jnp.broadcast_to(jnp.asarray(valid, bool), label.shape), -1, 0)
+
+    def step(carry, x):
+        prev, c = carry  # last node visited (-1: none yet), counts so far
+        lab, v = x
+        is_node = (lab >= 0) | (lab == OUTSIDE)
+        node = jnp.where(lab >= 0, lab, n_node - 1)
+        trans = v & is_node & (prev >= 0) & (prev != node)
+        edge = adj.at[jnp.maximum(prev, 0) * n_node + node].get(mode="promise_in_bounds")
+        free = v & ((lab >= 0) | (lab == DOOR))
+        c = c + jnp.stack([v, free, trans, trans & edge]).astype(jnp.int32)
+        prev = jnp.where(v & is_node, node, prev)
+        return (prev, c), (c if keep_all else None)
+
+    shape = label.shape[:-1]
+    init = (jnp.full(shape, -1, jnp.int32), jnp.zeros((4, *shape), jnp.int32))
+    (_, c), cs = jax.lax.scan(step, init, (lab_t, val_t))
+    return cs if keep_all else c
 
 
 def consistency_from_counts(n_valid, n_free, n_trans, n_ok):
@@ -257,21 +322,18 @@ def prefix_table(maps: GateMaps, H, traj, traj_mask, window_end):
     Returns:
         ``(..., Kp)`` float32 consistency.
     """
-    _, valid, free, trans, ok = events(maps, H, traj, traj_mask)
-    end = jnp.clip(jnp.asarray(window_end), 0, valid.shape[-1] - 1)
-
-    def at_ends(x):
-        return jnp.take(jnp.cumsum(x.astype(jnp.int32), axis=-1), end, axis=-1)
-
-    return consistency_from_counts(*(at_ends(x) for x in (valid, free, trans, ok)))
+    label = labels(maps, H, traj)
+    cs = walk_counts(maps, label, traj_mask, keep_all=True)  # (T, 4, ...)
+    end = jnp.clip(jnp.asarray(window_end), 0, label.shape[-1] - 1)
+    counts = jnp.moveaxis(cs[end], 0, -1)  # (4, ..., Kp)
+    return consistency_from_counts(*counts)
 
 
 def consistency_at(maps: GateMaps, H, traj, traj_mask, end):
     """Consistency of anchors ``H (..., 3)`` on the samples ``t <= end``; equals the table."""
     t = jnp.arange(jnp.asarray(traj).shape[0])
-    _, valid, free, trans, ok = events(maps, H, traj, jnp.asarray(traj_mask, bool) & (t <= end))
-    counts = (jnp.sum(x.astype(jnp.int32), axis=-1) for x in (valid, free, trans, ok))
-    return consistency_from_counts(*counts)
+    valid = jnp.asarray(traj_mask, bool) & (t <= end)
+    return consistency_from_counts(*walk_counts(maps, labels(maps, H, traj), valid))
 
 
 def rooms_spanned(maps: GateMaps, H, traj, traj_mask, end):

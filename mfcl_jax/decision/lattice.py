@@ -15,15 +15,32 @@ offset ``o`` of the floor plan and the anchors are coherent with ``o`` itself; t
 room offset is the fundamental. A sub-harmonic ``tau / n`` therefore survives only if it is
 itself a room offset. ``tau`` is reported with a
 canonical sign (positive x, or positive y when x is zero).
+
+Every residual test depends on the anchors only, not on which groups contend, so it is done
+once (``prepare``) and each contender mask costs masked reductions (``detect_from``).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
 
-__all__ = ["KIND_NONE", "TRANSLATION", "MULTIMODAL", "ROTATION", "MIRROR", "KIND_NAMES", "detect"]
+__all__ = [
+    "KIND_NONE",
+    "TRANSLATION",
+    "MULTIMODAL",
+    "ROTATION",
+    "MIRROR",
+    "KIND_NAMES",
+    "LatticeFit",
+    "prepare",
+    "detect_from",
+    "detect",
+]
 
 # Kind codes of AMBIGUOUS. Rotation and mirror classes are reserved (not detected yet).
 KIND_NONE, TRANSLATION, MULTIMODAL, ROTATION, MIRROR = 0, 1, 2, 3, 4
@@ -34,6 +51,93 @@ KIND_NAMES = {
     ROTATION: "rotation",
     MIRROR: "mirror",
 }
+
+
+@dataclass(frozen=True)
+class LatticeFit:
+    """The contender-independent part of ``detect`` for one set of group anchors.
+
+    Integer multiples and residual tests of every generator (``C = G n_sub``) and of every room
+    offset against every group. ``detect_from`` turns it into a verdict for any contender mask
+    with masked reductions only, so several masks (all groups, tied groups under different
+    floors) share one fit.
+    """
+
+    d: jax.Array  # (G, 2) anchor translations relative to the winner's
+    dth: jax.Array  # (G,) heading difference to the winner
+    gen: jax.Array  # (C, 2) candidate periods (t_a - t_w) / n
+    gen_len_ok: jax.Array  # (C,) bool non-zero period
+    k_gen: jax.Array  # (C, G) integer multiples of each generator
+    ok_gen: jax.Array  # (C, G) bool residual <= eps_t
+    k_off: jax.Array  # (P, G) integer multiples of each room offset
+    ok_off: jax.Array  # (P, G) bool residual <= eps_t
+
+
+jax.tree_util.register_dataclass(
+    LatticeFit, data_fields=list(LatticeFit.__dataclass_fields__), meta_fields=[]
+)
+
+
+def _multiples(d, v, eps_t):
+    """Integer multiples ``k (C, G)`` of periods ``v (C, 2)`` nearest ``d (G, 2)``; fit mask."""
+    v2 = jnp.maximum(jnp.sum(v * v, axis=-1), 1e-12)
+    k = jnp.round(jnp.einsum("gd,cd->cg", d, v) / v2[:, None])
+    res = jnp.linalg.norm(d[None] - k[..., None] * v[:, None, :], axis=-1)
+    return k, res <= eps_t
+
+
+def prepare(anchor, winner, offsets, eps_t, n_sub: int = 3) -> LatticeFit:
+    """``LatticeFit`` of group anchors ``(G, 3)`` relative to group ``winner``."""
+    g = anchor.shape[0]
+    ref = anchor[winner]
+    d = anchor[:, :2] - ref[:2]  # (G, 2)
+    _, dth = se2.distance_pair(anchor, ref)
+    n = jnp.arange(1, n_sub + 1, dtype=anchor.dtype)
+    gen = (d[:, None, :] / n[None, :, None]).reshape(g * n_sub, 2)  # (C, 2)
+    k_gen, ok_gen = _multiples(d, gen, eps_t)
+    k_off, ok_off = _multiples(d, offsets.astype(d.dtype), eps_t)
+    return LatticeFit(
+        d, dth, gen, jnp.linalg.norm(gen, axis=-1) > 1e-6, k_gen, ok_gen, k_off, ok_off
+    )
+
+
+def detect_from(
+    fit: LatticeFit, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n_sub: int = 3
+):
+    """``detect`` for one contender mask from a shared ``LatticeFit`` (same arguments)."""
+    g = contender.shape[0]
+    d = fit.d
+    offsets = offsets.astype(d.dtype)
+    yaw_ok = jnp.all(jnp.where(contender, fit.dth <= eps_theta, True))
+    gen_ok = jnp.repeat(contender & (jnp.arange(g) != winner), n_sub) & fit.gen_len_ok
+
+    def coherent(ok):  # (C, G) residual tests -> (C,) every contender fits
+        return jnp.all(jnp.where(contender[None], ok, True), axis=-1)
+
+    def refine(k):  # least-squares period from integer multiples (C, G)
+        kc = jnp.where(contender[None], k, 0.0)
+        den = jnp.sum(kc * kc, axis=-1)
+        return jnp.einsum("cg,gd->cd", kc, d) / jnp.maximum(den, 1.0)[:, None], den
+
+    tau, den = refine(fit.k_gen)
+    # Validate against the layout: the nearest congruent-room offset must be within eps_t and
+    # the anchors must also be coherent with that offset itself (this rejects generators that
+    # only fit through loose integer multiples, e.g. 2/3 of the pitch).
+    dist = jnp.linalg.norm(tau[:, None, :] - offsets[None], axis=-1)
+    dist = jnp.where(offsets_mask[None], dist, jnp.inf)
+    near = jnp.argmin(dist, axis=-1)
+    room = offsets[near]
+    layout_ok = jnp.min(dist, axis=-1) <= eps_t
+    tau, den_room = refine(fit.k_off[near])
+    valid = gen_ok & coherent(fit.ok_gen) & layout_ok & coherent(fit.ok_off[near])
+    valid = valid & (den > 0) & (den_room > 0)
+    length = jnp.where(valid, jnp.linalg.norm(room, axis=-1), jnp.inf)
+    best = jnp.argmin(length)
+    ok = jnp.any(valid) & yaw_ok & (jnp.sum(contender) >= 2)
+    t = tau[best]
+    flip = (t[0] < -1e-6) | ((jnp.abs(t[0]) <= 1e-6) & (t[1] < 0))
+    t = jnp.where(flip, -t, t)
+    return ok, jnp.where(ok, t, jnp.zeros_like(t))
 
 
 def detect(anchor, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n_sub: int = 3):
@@ -51,44 +155,5 @@ def detect(anchor, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n
         ``(ok (), tau (2,))``: ``ok`` when at least two contenders form a coherent lattice whose
         period matches a room offset; ``tau`` is zero otherwise.
     """
-    g = anchor.shape[0]
-    ref = anchor[winner]
-    d = anchor[:, :2] - ref[:2]  # (G, 2)
-    _, dth = se2.distance_pair(anchor, ref)
-    yaw_ok = jnp.all(jnp.where(contender, dth <= eps_theta, True))
-    n = jnp.arange(1, n_sub + 1, dtype=anchor.dtype)
-    gen = (d[:, None, :] / n[None, :, None]).reshape(g * n_sub, 2)  # (C, 2)
-    gen_ok = jnp.repeat(contender & (jnp.arange(g) != winner), n_sub)
-    gen_ok = gen_ok & (jnp.linalg.norm(gen, axis=-1) > 1e-6)
-
-    def fit(v):  # v: (C, 2) periods -> integer multiples (C, G) and coherence (C,)
-        v2 = jnp.maximum(jnp.sum(v * v, axis=-1), 1e-12)
-        k = jnp.round(jnp.einsum("gd,cd->cg", d, v) / v2[:, None])
-        res = jnp.linalg.norm(d[None] - k[..., None] * v[:, None, :], axis=-1)
-        return k, jnp.all(jnp.where(contender[None], res <= eps_t, True), axis=-1)
-
-    def refine(k):  # least-squares period from integer multiples (C, G)
-        kc = jnp.where(contender[None], k, 0.0)
-        den = jnp.sum(kc * kc, axis=-1)
-        return jnp.einsum("cg,gd->cd", kc, d) / jnp.maximum(den, 1.0)[:, None], den
-
-    k, coherent = fit(gen)
-    tau, den = refine(k)
-    # Validate against the layout: the nearest congruent-room offset must be within eps_t and
-    # the anchors must also be coherent with that offset itself (this rejects generators that
-    # only fit through loose integer multiples, e.g. 2/3 of the pitch).
-    dist = jnp.linalg.norm(tau[:, None, :] - offsets[None], axis=-1)
-    dist = jnp.where(offsets_mask[None], dist, jnp.inf)
-    near = jnp.argmin(dist, axis=-1)
-    room = offsets[near]
-    layout_ok = jnp.min(dist, axis=-1) <= eps_t
-    k_room, coherent_room = fit(room)
-    tau, den_room = refine(k_room)
-    valid = gen_ok & coherent & layout_ok & coherent_room & (den > 0) & (den_room > 0)
-    length = jnp.where(valid, jnp.linalg.norm(room, axis=-1), jnp.inf)
-    best = jnp.argmin(length)
-    ok = jnp.any(valid) & yaw_ok & (jnp.sum(contender) >= 2)
-    t = tau[best]
-    flip = (t[0] < -1e-6) | ((jnp.abs(t[0]) <= 1e-6) & (t[1] < 0))
-    t = jnp.where(flip, -t, t)
-    return ok, jnp.where(ok, t, jnp.zeros_like(t))
+    fit = prepare(anchor, winner, offsets, eps_t, n_sub)
+    return detect_from(fit, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n_sub)

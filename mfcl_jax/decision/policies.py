@@ -128,6 +128,15 @@ def _within(a, b, p):
     return near & (cosd >= jnp.cos(p.delta_theta))
 
 
+def _within_pairs(h, p):
+    """``_within`` of every pair of ``h (M, 3)`` -> ``(M, M)``, trig once per pose."""
+    c, sn = jnp.cos(h[:, 2]), jnp.sin(h[:, 2])
+    d = h[:, None, :2] - h[None, :, :2]
+    near = jnp.sum(d * d, axis=-1) <= p.delta_xy * p.delta_xy
+    cosd = c[:, None] * c[None, :] + sn[:, None] * sn[None, :]
+    return near & (cosd >= jnp.cos(p.delta_theta))
+
+
 def baselines(H, score, mask, cons, wmask, p: DecisionParams) -> Decisions:
     """All baselines of one run at every prefix.
 
@@ -160,18 +169,22 @@ def baselines(H, score, mask, cons, wmask, p: DecisionParams) -> Decisions:
     st, an, rs = _sticky(trig, top_pose, has)
     conf = _decision(st, an, rs, max_score, n=1)
 
-    # support: neighbour counts per window, accumulated over windows
+    # support: neighbour counts per window, accumulated over windows. The pairwise matrix is
+    # built once (per threshold set); heading trig is taken per candidate, not per pair.
     flat_h, flat_ok = H.reshape(-1, 3), ok.reshape(-1)
     flat_w = jnp.repeat(idx, jj)
-    nb = _within(flat_h[:, None, :], flat_h[None, :, :], p) & flat_ok[None, :]  # (KJ, KJ)
-    per_w = jnp.sum(nb.reshape(kk * jj, kk, jj), axis=-1).astype(jnp.int32)  # (KJ, K)
+    nb = _within_pairs(flat_h, p) & flat_ok[None, :]  # (KJ, KJ)
+    per_w = jnp.sum(nb.reshape(kk * jj, kk, jj), axis=-1, dtype=jnp.int32)  # (KJ, K)
     support = jnp.cumsum(per_w, axis=1)  # support of a at prefix k
+    flat_s = score.reshape(-1)
 
     def at_prefix(k):
         elig = flat_ok & (flat_w <= k)
         cnt = jnp.where(elig, support[:, k], -1)
-        key = jnp.where(elig, score.reshape(-1), -jnp.inf)
-        a = jnp.lexsort((-key, -cnt))[0]
+        key = jnp.where(elig, flat_s, -jnp.inf)
+        # most supported, ties to the higher score, then the lower index
+        a = jnp.argmax(jnp.where(cnt == jnp.max(cnt), key, -jnp.inf))
+        a = jnp.where(jnp.any(elig), a, 0)
         n1 = jnp.maximum(cnt[a], 0)
         members = nb[a] & (flat_w <= k)
         n2 = jnp.maximum(jnp.max(jnp.where(~members & elig, cnt, 0)), 0)

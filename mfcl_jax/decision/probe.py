@@ -7,7 +7,8 @@ front-end's tie-breaking kept out of the champions can still block a commit. An 
 admissible iff it passes the gate (``c >= tau_c``) and ``c >= c_winner - gamma``.
 
 The winner itself is gated in the same batched call, and its rooms spanned read from the same
-labels, so the probe costs one ``events`` evaluation of ``1 + 2 P n_cap`` anchors.
+labels, so the probe costs one label lookup and one counting pass (``gate.walk_counts``) of
+``1 + 2 P n_cap`` anchors over the trajectory.
 """
 
 from __future__ import annotations
@@ -58,13 +59,11 @@ def probe(
     p = taus.shape[0]
     anchors = jnp.concatenate([t_star[None], alias.reshape(-1, 3)], axis=0)
     t = jnp.arange(traj.shape[0])
-    label, valid, free, trans, ok = gate_mod.events(
-        maps, anchors, traj, jnp.asarray(traj_mask, bool) & (t <= end)
-    )
-    counts = (jnp.sum(x.astype(jnp.int32), axis=-1) for x in (valid, free, trans, ok))
-    c = gate_mod.consistency_from_counts(*counts)
+    valid = jnp.asarray(traj_mask, bool) & (t <= end)
+    label = gate_mod.labels(maps, anchors, traj)  # (A, T)
+    c = gate_mod.consistency_from_counts(*gate_mod.walk_counts(maps, label, valid))
     rooms = jnp.arange(maps.adjacency.shape[-1] - 1, dtype=label.dtype)
-    seen = jnp.any((label[0][:, None] == rooms) & valid[0][:, None], axis=0)
+    seen = jnp.any((label[0][:, None] == rooms) & valid[:, None], axis=0)
     c_win, c_alias = c[0], c[1:].reshape(p, 2 * n_cap)
     used = taus_mask[:, None] & (jnp.abs(n).astype(jnp.float32) <= n_max)[None, :]
     adm = used & (c_alias >= tau_c) & (c_alias >= c_win - gamma)

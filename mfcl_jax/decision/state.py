@@ -15,6 +15,17 @@ Order of tests (first that fires wins):
 7. B1 >= b_min and margin >= delta_min: probe aliases; an admissible one
    -> AMBIGUOUS(translation, tau), else COMMIT(T*)
 8. otherwise -> AMBIGUOUS (multimodal with >= 2 groups, no kind with one group)
+
+``T*`` (the reported anchor, ``Decisions.anchor``) is the mean of the winner's most recent
+champions (``DecisionParams.recent``); tests 4, 5 and 7 (rooms spanned, winner gate, probe)
+use it because it is the anchor a commit hands over. Grouping, ``B_m``, the margin, the
+spread (test 5, about the all-member mean) and the lattice (all-member group means) are as
+in the paper.
+
+The work splits in two: ``prefix_core`` (champions, groups, the lattice over all groups and
+the probe) depends only on the prefix, the thresholds and the gate flag; ``finish`` applies a
+variant's probe flag and floors (and the tied-group lattice, which depends on ``delta_min``).
+The evaluator shares one core among every variant with the same gate flag.
 """
 
 from __future__ import annotations
@@ -35,6 +46,9 @@ __all__ = [
     "REASONS",
     "DecisionParams",
     "Decisions",
+    "PrefixCore",
+    "prefix_core",
+    "finish",
     "decide_prefix",
 ]
 
@@ -59,6 +73,8 @@ class DecisionParams:
 
     Angles are in radians. ``score_floor`` drops candidates (and defers when every score is
     below it); ``confidence_ratio`` and ``support_ratio`` parametrise the baselines.
+    ``recent`` is how many of the winner's most recent champions are averaged into the
+    reported anchor ``T*`` (``<= 0``: all of them, the paper's ``T*``); see ``consensus``.
     """
 
     delta_xy: float = 1.5
@@ -74,6 +90,7 @@ class DecisionParams:
     score_floor: float = 0.0
     confidence_ratio: float = 1.2
     support_ratio: float = 1.5
+    recent: float = 3.0
 
     def replace(self, **kw) -> DecisionParams:
         return replace(self, **kw)
@@ -130,6 +147,121 @@ jax.tree_util.register_dataclass(
 )
 
 
+@dataclass(frozen=True)
+class PrefixCore:
+    """What a decision at one prefix needs before the variant's floors and probe flag apply.
+
+    It depends on the prefix, the thresholds and the gate flag only, so the evaluator computes
+    it once per gate mode and finishes every variant from it (``finish``).
+    """
+
+    any_anchor: jax.Array  # () bool
+    max_score: jax.Array  # ()
+    n_champions: jax.Array  # () int32
+    groups: consensus.Groups
+    fit: lattice.LatticeFit  # residual tests of the group anchors (shared by every mask)
+    all_ok: jax.Array  # () bool lattice over every live group
+    all_tau: jax.Array  # (2,)
+    probe_result: probe.ProbeResult  # every probe period on (the variant may switch it off)
+
+
+jax.tree_util.register_dataclass(
+    PrefixCore, data_fields=list(PrefixCore.__dataclass_fields__), meta_fields=[]
+)
+
+
+def prefix_core(
+    k, H, score, mask, cons, traj, traj_mask, end, maps, p: DecisionParams, use_gate, n_cap=3
+) -> PrefixCore:
+    """Champions, groups, the all-group lattice and the probe at prefix ``k``.
+
+    Args: as ``decide_prefix``.
+    """
+    kk = H.shape[0]
+    visible = mask & (jnp.arange(kk) <= k)[:, None]
+    any_anchor = jnp.any(visible)
+    max_score = jnp.max(jnp.where(visible, score, -jnp.inf))
+    max_score = jnp.where(any_anchor, max_score, 0.0)
+    admitted = visible & (score >= p.score_floor) & ((cons >= p.tau_c) | ~use_gate)
+    ch = consensus.champions(H, score, admitted)
+    g = consensus.group(ch, p.delta_xy, p.delta_theta, p.recent)
+    live = jnp.arange(kk) < g.n_groups
+    fit = lattice.prepare(g.anchor, g.winner, maps.offsets, p.eps_t)
+    all_ok, all_tau = lattice.detect_from(
+        fit, live, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
+    )
+    taus = jnp.concatenate([all_tau[None], maps.generators.astype(all_tau.dtype)], axis=0)
+    taus_mask = jnp.concatenate([all_ok[None], maps.generators_mask])
+    # The reported (recency) anchor is the one committed, so it is the one gated and probed.
+    pr = probe.probe(
+        maps, g.t_star, taus, taus_mask, traj, traj_mask, end, p.tau_c, p.gamma, p.n_max, n_cap
+    )
+    n_ch = jnp.sum(ch.has).astype(jnp.int32)
+    return PrefixCore(any_anchor, max_score, n_ch, g, fit, all_ok, all_tau, pr)
+
+
+def finish(
+    core: PrefixCore, maps, p: DecisionParams, use_gate, use_probe, b_min, delta_min
+) -> Decisions:
+    """Applies a variant (gate flag, probe flag, commit floors) to a ``PrefixCore``.
+
+    ``use_gate`` must be the flag ``core`` was computed with.
+    """
+    g = core.groups
+    kk = g.size.shape[0]
+    live = jnp.arange(kk) < g.n_groups
+    tied = live & ((g.b1 - g.size).astype(jnp.float32) < delta_min)
+    lat_ok, lat_tau = lattice.detect_from(
+        core.fit, tied, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
+    )
+    pr = core.probe_result
+    # probe off == every probe period masked: no alias, zero period and alias consistency
+    p_alias = pr.alias & use_probe
+    p_tau = jnp.where(use_probe, pr.tau, jnp.zeros_like(pr.tau))
+    p_c = jnp.where(use_probe, pr.c_alias, jnp.zeros_like(pr.c_alias))
+    gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
+    b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
+    decisive = (b1 >= b_min) & (margin >= delta_min)
+    tests = [
+        ~core.any_anchor,
+        core.max_score < p.score_floor,
+        g.n_groups == 0,
+        pr.rooms < 2,
+        ~gate_w,
+        g.spread > p.sigma_max,
+        (margin < delta_min) & lat_ok,
+        decisive & p_alias,
+        decisive,
+    ]
+    multi = jnp.where(g.n_groups >= 2, lattice.MULTIMODAL, lattice.KIND_NONE)
+    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, COMMIT]
+    kinds = [lattice.KIND_NONE] * 6 + [lattice.TRANSLATION, lattice.TRANSLATION, lattice.KIND_NONE]
+    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0]
+    state = jnp.select(tests, states, AMBIGUOUS).astype(jnp.int32)
+    kind = jnp.select(tests, kinds, multi).astype(jnp.int32)
+    reason = jnp.select(tests, reasons, 0).astype(jnp.int32)
+    tau = jnp.select(tests[6:8], [lat_tau, p_tau], jnp.zeros_like(lat_tau))
+    return Decisions(
+        state=state,
+        kind=kind,
+        anchor=g.t_star,
+        tau=jnp.where(kind == lattice.TRANSLATION, tau, 0.0),
+        b1=g.b1,
+        b2=g.b2,
+        margin=g.margin,
+        n_groups=g.n_groups,
+        n_champions=core.n_champions,
+        spread=g.spread,
+        rooms=pr.rooms,
+        c_winner=pr.c_winner,
+        winner_gate=pr.c_winner >= p.tau_c,
+        probe_alias=p_alias,
+        probe_c=p_c,
+        reason=reason,
+        max_score=core.max_score,
+    )
+
+
 def decide_prefix(
     k,
     H,
@@ -160,66 +292,5 @@ def decide_prefix(
         b_min, delta_min: ``()`` commit floors (traced; the variant may override ``p``'s).
         n_cap: static probe shift capacity.
     """
-    kk = H.shape[0]
-    visible = mask & (jnp.arange(kk) <= k)[:, None]
-    any_anchor = jnp.any(visible)
-    max_score = jnp.max(jnp.where(visible, score, -jnp.inf))
-    max_score = jnp.where(any_anchor, max_score, 0.0)
-    admitted = visible & (score >= p.score_floor) & ((cons >= p.tau_c) | ~use_gate)
-    ch = consensus.champions(H, score, admitted)
-    g = consensus.group(ch, p.delta_xy, p.delta_theta)
-    slots = jnp.arange(kk)
-    live = slots < g.n_groups
-    tied = live & ((g.b1 - g.size).astype(jnp.float32) < delta_min)
-    lat_ok, lat_tau = lattice.detect(
-        g.anchor, tied, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
-    )
-    all_ok, all_tau = lattice.detect(
-        g.anchor, live, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
-    )
-    taus = jnp.concatenate([all_tau[None], maps.generators.astype(all_tau.dtype)], axis=0)
-    taus_mask = jnp.concatenate([all_ok[None], maps.generators_mask]) & use_probe
-    pr = probe.probe(
-        maps, g.t_star, taus, taus_mask, traj, traj_mask, end, p.tau_c, p.gamma, p.n_max, n_cap
-    )
-    gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
-    b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
-    decisive = (b1 >= b_min) & (margin >= delta_min)
-    tests = [
-        ~any_anchor,
-        max_score < p.score_floor,
-        g.n_groups == 0,
-        pr.rooms < 2,
-        ~gate_w,
-        g.spread > p.sigma_max,
-        (margin < delta_min) & lat_ok,
-        decisive & pr.alias,
-        decisive,
-    ]
-    multi = jnp.where(g.n_groups >= 2, lattice.MULTIMODAL, lattice.KIND_NONE)
-    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, COMMIT]
-    kinds = [lattice.KIND_NONE] * 6 + [lattice.TRANSLATION, lattice.TRANSLATION, lattice.KIND_NONE]
-    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0]
-    state = jnp.select(tests, states, AMBIGUOUS).astype(jnp.int32)
-    kind = jnp.select(tests, kinds, multi).astype(jnp.int32)
-    reason = jnp.select(tests, reasons, 0).astype(jnp.int32)
-    tau = jnp.select(tests[6:8], [lat_tau, pr.tau], jnp.zeros_like(lat_tau))
-    return Decisions(
-        state=state,
-        kind=kind,
-        anchor=g.t_star,
-        tau=jnp.where(kind == lattice.TRANSLATION, tau, 0.0),
-        b1=g.b1,
-        b2=g.b2,
-        margin=g.margin,
-        n_groups=g.n_groups,
-        n_champions=jnp.sum(ch.has).astype(jnp.int32),
-        spread=g.spread,
-        rooms=pr.rooms,
-        c_winner=pr.c_winner,
-        winner_gate=pr.c_winner >= p.tau_c,
-        probe_alias=pr.alias,
-        probe_c=pr.c_alias,
-        reason=reason,
-        max_score=max_score,
-    )
+    core = prefix_core(k, H, score, mask, cons, traj, traj_mask, end, maps, p, use_gate, n_cap)
+    return finish(core, maps, p, use_gate, use_probe, b_min, delta_min)

@@ -177,6 +177,39 @@ def test_refinement_improves_the_score_and_the_pose(asym):
     assert np.all(np.asarray(dth) < math.radians(0.1)), dth
 
 
+def test_refinement_gradient_is_the_score_gradient(asym):
+    """The optax chain is fed the exact gradient of the smooth score (in lever-scaled units),
+    and its Gauss-Newton preconditioner solves the damped normal equations."""
+    fp, subs, _, _ = asym
+    pts, _, Y = subs[0]
+    f = feats_for(fp)
+    ok = np.ones(len(pts), bool)
+    pose0 = (Y + np.array([0.04, -0.03, math.radians(0.5)])).astype(np.float32)
+    lever, sigma = np.float32(PARAMS.yaw_lever), np.float32(0.15)
+
+    def neg_score(v):
+        pose = pose0 + v * jnp.stack([jnp.float32(1), jnp.float32(1), 1 / lever])
+        return -verify.occupancy(pose, pts, ok, f, sigma)
+
+    @jax.jit  # one compilation instead of ~5 s of eager dispatch
+    def check(u):
+        g, nrm = refine.grad_and_normal(u, pose0, lever, pts, ok.astype(np.float32), f, sigma)
+        step, _ = refine.scale_by_gauss_newton(0.0).update(g, None, normal=nrm)
+        return g, nrm, step, jax.grad(neg_score)(u)
+
+    g, nrm, step, auto = (np.asarray(a) for a in check(np.float32([0.01, 0.02, -0.01])))
+    np.testing.assert_allclose(g, auto, rtol=1e-3, atol=1e-5)
+    np.testing.assert_allclose(nrm, nrm.T, rtol=1e-5)
+    assert np.all(np.linalg.eigvalsh(nrm) >= -1e-6)
+    np.testing.assert_allclose(nrm @ step, g, rtol=1e-3, atol=1e-5)
+    with pytest.raises(ValueError, match="damping"):
+        refine.scale_by_gauss_newton(-1.0)
+    with pytest.raises(ValueError, match="yaw_lever"):
+        FrontendParams(yaw_lever=0.0)
+    with pytest.raises(ValueError, match="refine_lr"):
+        FrontendParams(refine_lr=0.01)
+
+
 def test_common_features_one_trace_for_both_buildings():
     fps = [get_scene(n).floorplan for n in ("three_rooms", "symmetric_bays")]
     fa, fb = common_features(fps, PARAMS)

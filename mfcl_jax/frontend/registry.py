@@ -93,24 +93,24 @@ class FrontendParams:
     sigma_occ: float = 0.07
     sigma_free: float = 0.05
     lambda_free: float = 1.0
-    # refinement of the top J: reweighted Gauss-Newton, sigma_refine -> sigma_occ
+    # refinement of the top J: optax, Gauss-Newton-preconditioned steps (refine.py),
+    # sigma_refine -> sigma_occ; the heading is optimised in metres of arc at yaw_lever
     refine_points: int = 512
     refine_steps: int = 10
     sigma_refine: float = 0.30
-    refine_max_step: float = 0.2
-    # first-round adam settings: names kept so old configs still parse; setting them is an error
+    refine_max_step: float = 0.2  # per step, metres (of arc at yaw_lever for the heading)
+    yaw_lever: float = 5.0
+    # first-round adam learning rate: name kept so old configs still parse; setting it is an error
     refine_lr: float | None = None
-    yaw_lever: float | None = None
     # final de-duplication of refined candidates
     dedupe_xy: float = 0.30
     dedupe_deg: float = 2.0
 
     def __post_init__(self):
-        for name in ("refine_lr", "yaw_lever"):
-            if getattr(self, name) is not None:
-                raise ValueError(f"FrontendParams: {name}={getattr(self, name)!r} is no longer "
-                                 "used (refinement is Gauss-Newton now); use refine_steps, "
-                                 "sigma_refine, refine_max_step")
+        if self.refine_lr is not None:
+            raise ValueError(f"FrontendParams: refine_lr={self.refine_lr!r} is no longer used "
+                             "(refinement steps are Gauss-Newton-preconditioned, no learning "
+                             "rate); use refine_steps, sigma_refine, refine_max_step, yaw_lever")
         if not 1 <= self.J <= self.n_hough <= self.n_prescreen <= self.max_votes:
             raise ValueError(
                 "FrontendParams: need 1 <= J <= n_hough <= n_prescreen <= max_votes, got "
@@ -121,7 +121,7 @@ class FrontendParams:
             if getattr(self, name) < 1:
                 raise ValueError(f"FrontendParams: {name} must be >= 1, got {getattr(self, name)}")
         for name in ("cell", "line_rho_res", "rho_max", "inlier_band", "sigma_occ", "sigma_free",
-                     "sigma_refine", "refine_max_step"):
+                     "sigma_refine", "refine_max_step", "yaw_lever"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FrontendParams: {name} must be > 0, got {getattr(self, name)}")
 

@@ -26,6 +26,7 @@ SCHEMA = {
     "symmetric_windows": ["trajectory", "k", "ours_state", "ours_tau", "no_probe_state"],
     "paper_comparison": ["section", "quantity", "paper", "ours (main seed)"],
     "timings": ["stage", "compile_s", "run_s"],
+    "congruence": ["congruence", "scene", "correct_commit", "false_commit", "mean_commit_k"],
 }
 
 

@@ -200,17 +200,8 @@ class Localizer:
 
 
 def _gate_maps(fp):
-    """``gate_maps`` with its congruent-room offset capacity grown until the building fits
-    (Office_A has 152 offsets, over the default 32); the capacity is static, so powers of
-    four keep the number of decision compilations small."""
-    cap = 32
-    while True:
-        try:
-            return gate_maps(fp, max_offsets=cap)
-        except ValueError as e:
-            if "exceed the capacity" not in str(e) or cap >= 4096:
-                raise
-            cap *= 4
+    """``gate_maps`` sized to the building (it grows its offset capacity itself)."""
+    return gate_maps(fp)
 
 
 def localize(floorplan, seq: ScanSequence, params: LocalizeParams | None = None) -> list:

@@ -161,9 +161,10 @@ def register_all(data: StudyData, params, timings: Timings, progress=True) -> Ca
     return jax.tree.map(lambda a: np.asarray(a)[:n], cands)
 
 
-def run_maps(data: StudyData) -> GateMaps:
+def run_maps(data: StudyData, min_iou: float | None = None) -> GateMaps:
     """Gate maps per run, padded to one bucket and stacked ``(R, ...)``."""
-    maps = [gate_maps(s.floorplan) for s in data.scenes]
+    kw = {} if min_iou is None else {"min_iou": min_iou}
+    maps = [gate_maps(s.floorplan, **kw) for s in data.scenes]
     shape = tuple(int(max(np.asarray(m.label).shape[i] for m in maps)) for i in range(2))
     n_rooms = max(m.n_rooms for m in maps)
     maps = [pad_maps(m, shape, n_rooms) for m in maps]
@@ -173,10 +174,13 @@ def run_maps(data: StudyData) -> GateMaps:
 
 
 def decide(data: StudyData, cands: Candidates, params: DecisionParams, timings: Timings,
-           label="decision", progress=True) -> pd.DataFrame:
-    """Every policy's decision at every window of every run, in one compiled call."""
+           label="decision", progress=True, min_iou: float | None = None) -> pd.DataFrame:
+    """Every policy's decision at every window of every run, in one compiled call.
+
+    ``min_iou`` overrides the room-congruence threshold of the gate maps (an ablation).
+    """
     runs_batch = data.runs_batch
-    maps = run_maps(data)
+    maps = run_maps(data, min_iou)
     t0 = time.perf_counter()
     dec, n_bad = evaluate_batch(cands, data.submaps, runs_batch, maps, params)
     dec = jax.block_until_ready(dec)

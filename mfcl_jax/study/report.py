@@ -51,6 +51,20 @@ def symmetric_summary(firsts: pd.DataFrame, scored: pd.DataFrame) -> pd.DataFram
     return pd.DataFrame(rows)
 
 
+def congruence_table(scored: pd.DataFrame, strict: pd.DataFrame, strict_iou: float):
+    """Our layer with the default room-congruence threshold vs a strict one, per scene."""
+    from mfcl_jax.decision.gate import MIN_CONGRUENT_IOU
+
+    rows = []
+    for label, df in ((f"IoU >= {MIN_CONGRUENT_IOU:g} (default)", scored),
+                      (f"IoU >= {strict_iou:g} (strict)", strict)):
+        f = firsts_of(df[df["policy"] == "ours"])
+        for scene, g in f.groupby("scene"):
+            m = tables.selective_metrics(g, policies=("ours",)).iloc[0].to_dict()
+            rows.append({"congruence": label, "scene": scene} | m)
+    return pd.DataFrame(rows).drop(columns=["policy"])
+
+
 def _fmt_commit(r) -> str:
     if not r["committed"]:
         return f"no commit ({r['final_state']})"

@@ -26,7 +26,7 @@ def batch_comma_lists(argv: list[str]) -> list[str]:
         return argv
     out = []
     for a in argv:
-        m = re.fullmatch(r"(\+?)(%s)=([^\[\]]*,[^\[\]]*)" % "|".join(LIST_KEYS), a)
+        m = re.fullmatch(r"(\+?)({})=([^\[\]]*,[^\[\]]*)".format("|".join(LIST_KEYS)), a)
         out.append(f"{m.group(1)}{m.group(2)}=[{m.group(3)}]" if m else a)
     return out
 
@@ -36,10 +36,10 @@ register_configs()
 
 @hydra.main(config_path="../conf", config_name="sweep", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    from mfcl_jax.study.run import run_study
-
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
+
+    from mfcl_jax.study.run import run_study
 
     study = to_study(cfg)
     if HydraConfig.get().mode == RunMode.MULTIRUN:

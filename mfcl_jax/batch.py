@@ -195,8 +195,14 @@ def concat(parts: list[tuple[SubmapBatch, RunBatch, Truth]]):
         s = pad_submaps(jax.tree.map(np.asarray, s), p=p)
         subs.append(
             SubmapBatch(
-                s.points, s.origins, s.mask, s.X, np.where(s.run >= 0, s.run + n_runs, -1),
-                s.window, s.t, s.n_dropped,
+                s.points,
+                s.origins,
+                s.mask,
+                s.X,
+                np.where(s.run >= 0, s.run + n_runs, -1),
+                s.window,
+                s.t,
+                s.n_dropped,
             )
         )
         r = jax.tree.map(np.asarray, r)
@@ -232,4 +238,3 @@ def concat(parts: list[tuple[SubmapBatch, RunBatch, Truth]]):
         run_off,
         sub_off,
     )
-

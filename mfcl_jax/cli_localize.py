@@ -17,17 +17,26 @@ def add_localize_commands(subparsers) -> None:
     lo = subparsers.add_parser(
         "localize", help="register submap windows to a floor plan and decide per window"
     )
-    lo.add_argument("dataset", type=Path, nargs="?",
-                    help="dataset folder (floorplan.*, odometry.tum, scans/); omit with --bag")
-    lo.add_argument("--floorplan", type=Path,
-                    help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's")
+    lo.add_argument(
+        "dataset",
+        type=Path,
+        nargs="?",
+        help="dataset folder (floorplan.*, odometry.tum, scans/); omit with --bag",
+    )
+    lo.add_argument(
+        "--floorplan", type=Path, help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's"
+    )
     lo.add_argument("--bag", type=Path, help="ROS1 .bag or ROS2 bag folder instead of a dataset")
     lo.add_argument("--scan-topic", default="/scan", help="LaserScan/PointCloud2 topic (/scan)")
     lo.add_argument("--odom-topic", default="/odom", help="nav_msgs/Odometry topic (/odom)")
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
     lo.add_argument("--storey", help="IFC storey name or elevation")
-    lo.add_argument("--out", type=Path, default=Path("decisions.jsonl"),
-                    help="decisions JSON lines (written atomically; default decisions.jsonl)")
+    lo.add_argument(
+        "--out",
+        type=Path,
+        default=Path("decisions.jsonl"),
+        help="decisions JSON lines (written atomically; default decisions.jsonl)",
+    )
     lo.add_argument("--quiet", action="store_true", help="no per-window status lines")
     lo.set_defaults(func=cmd_localize)
 
@@ -84,8 +93,10 @@ def cmd_localize(args) -> int:
     fp, seq = _load_input(args)
     loc = Localizer(fp, LocalizeParams(d_s=args.d_s))
     n = loc.n_windows(seq)
-    print(f"{seq.source}: {len(seq)} scans, {n} windows of {args.d_s:g} m; floor plan {fp.name}",
-          file=sys.stderr)
+    print(
+        f"{seq.source}: {len(seq)} scans, {n} windows of {args.d_s:g} m; floor plan {fp.name}",
+        file=sys.stderr,
+    )
     if n == 0:
         print("no complete window: the odometry travels less than d_s", file=sys.stderr)
     decisions, first = [], None
@@ -99,8 +110,10 @@ def cmd_localize(args) -> int:
                     bar.write(r.status(), file=sys.stdout)
                 bar.update(1)
     except KeyboardInterrupt:
-        print(f"mfcl: interrupted after {len(decisions)} windows; {args.out} not written",
-              file=sys.stderr)
+        print(
+            f"mfcl: interrupted after {len(decisions)} windows; {args.out} not written",
+            file=sys.stderr,
+        )
         return 130
     write_decisions(args.out, decisions)
     last = decisions[-1]["state"] if decisions else "none"
@@ -126,20 +139,36 @@ def cmd_evaluate(args) -> int:
     gt_t, gt = read_tum(gt_path)
     scored = score_decisions(decisions, ot, odo, gt_t, gt, where=str(args.decisions))
     s = summarize(scored)
-    row = pd.DataFrame([{
-        "windows": s["windows"],
-        "first commit k": s["first_commit_k"] if s["first_commit_k"] else "-",
-        "t": s["first_commit_t"] if s["first_commit_t"] is not None else "-",
-        "err xy [m]": s["err_xy"],
-        "err yaw [deg]": s["err_yaw_deg"],
-        "verdict": "-" if s["correct"] is None else ("correct" if s["correct"] else "FALSE"),
-        "commits correct": f"{s['commits_correct']}/{s['commits']}",
-        "final state": s["final_state"] or "-",
-    }])
+    row = pd.DataFrame(
+        [
+            {
+                "windows": s["windows"],
+                "first commit k": s["first_commit_k"] if s["first_commit_k"] else "-",
+                "t": s["first_commit_t"] if s["first_commit_t"] is not None else "-",
+                "err xy [m]": s["err_xy"],
+                "err yaw [deg]": s["err_yaw_deg"],
+                "verdict": "-"
+                if s["correct"] is None
+                else ("correct" if s["correct"] else "FALSE"),
+                "commits correct": f"{s['commits_correct']}/{s['commits']}",
+                "final state": s["final_state"] or "-",
+            }
+        ]
+    )
     print(format_table(row))
     if args.windows and len(scored):
-        cols = ["k", "t", "state", "symmetry", "B1", "B2", "margin", "err_xy", "err_yaw_deg",
-                "correct"]
+        cols = [
+            "k",
+            "t",
+            "state",
+            "symmetry",
+            "B1",
+            "B2",
+            "margin",
+            "err_xy",
+            "err_yaw_deg",
+            "correct",
+        ]
         print()
         print(format_table(scored[cols]))
     return 0
@@ -154,8 +183,9 @@ def cmd_simulate(args) -> int:
         raise DataError(f"{args.out}: already exists (pass --overwrite to replace it)")
     wp = read_waypoints(args.trajectory)
     fp = load_floorplan(args.floorplan, storey=args.storey)
-    out = simulate_dataset(fp, wp, args.out, seed=args.seed, overwrite=args.overwrite,
-                           where=str(args.trajectory))
+    out = simulate_dataset(
+        fp, wp, args.out, seed=args.seed, overwrite=args.overwrite, where=str(args.trajectory)
+    )
     from mfcl_jax.io import read_tum
 
     t, _ = read_tum(out / "odometry.tum")

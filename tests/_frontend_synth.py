@@ -23,8 +23,19 @@ def raycast(sensor_xy, heading, segments, n_beams=360, max_range=15.0):
     return sensor_xy + d[hit] * r[hit, None]
 
 
-def make_submap(fp, start, end, yaw, clutter=(), n_scans=11, n_beams=360, noise=0.0,
-                rng=None, S=None, max_range=15.0):
+def make_submap(
+    fp,
+    start,
+    end,
+    yaw,
+    clutter=(),
+    n_scans=11,
+    n_beams=360,
+    noise=0.0,
+    rng=None,
+    S=None,
+    max_range=15.0,
+):
     """A submap of scans along ``start -> end``; returns ``(points_S, origins_S, Y)``.
 
     ``Y = ^B T_S`` is the first scan pose (x, y, yaw) unless ``S`` is given.
@@ -59,7 +70,12 @@ def batch(subs, P=None):
         k = min(len(p), P)
         pts[i, :k], org[i, :k], mask[i, :k] = p[:k], o[:k], True
     return SubmapBatch(
-        points=pts, origins=org, mask=mask, X=np.zeros((n, 3), np.float32),
-        run=np.zeros(n, np.int32), window=np.arange(n, dtype=np.int32),
-        t=np.zeros(n), n_dropped=np.zeros(n, np.int32),
+        points=pts,
+        origins=org,
+        mask=mask,
+        X=np.zeros((n, 3), np.float32),
+        run=np.zeros(n, np.int32),
+        window=np.arange(n, dtype=np.int32),
+        t=np.zeros(n),
+        n_dropped=np.zeros(n, np.int32),
     )

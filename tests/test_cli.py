@@ -24,8 +24,22 @@ def sim(tmp_path_factory):
     wp = root / "wp.csv"
     wp.write_text("x,y\n" + "\n".join(f"{x},{y}" for x, y in WAYPOINTS) + "\n")
     ds = root / "ds"
-    assert main(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out",
-                 str(ds), "--seed", "3"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--floorplan",
+                str(plan),
+                "--trajectory",
+                str(wp),
+                "--out",
+                str(ds),
+                "--seed",
+                "3",
+            ]
+        )
+        == 0
+    )
     return root, plan, wp, ds
 
 
@@ -41,8 +55,17 @@ def test_round_trip(sim, capsys):
     decs = read_decisions(out)  # validates the schema
     assert len(decs) == len(lines) >= 5
     for i, (d, line) in enumerate(zip(decs, lines, strict=True), 1):
-        assert list(json.loads(line)) == ["k", "t", "state", "anchor", "symmetry", "tau", "B1",
-                                          "B2", "margin"]
+        assert list(json.loads(line)) == [
+            "k",
+            "t",
+            "state",
+            "anchor",
+            "symmetry",
+            "tau",
+            "B1",
+            "B2",
+            "margin",
+        ]
         assert d["k"] == i and isinstance(d["t"], float)
         assert (d["anchor"] is None) == (d["state"] != "COMMIT")
     assert [d["t"] for d in decs] == sorted(d["t"] for d in decs)
@@ -77,8 +100,12 @@ def test_simulate_bad_csv(sim, tmp_path, capsys, body, where):
     wp = tmp_path / "bad.csv"
     wp.write_text(body)
     out = tmp_path / "out"
-    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(out)],
-           capsys, wp, where)
+    _fails(
+        ["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(out)],
+        capsys,
+        wp,
+        where,
+    )
     assert not out.exists() and not any(p.name.startswith(".out") for p in tmp_path.iterdir())
 
 
@@ -86,12 +113,39 @@ def test_simulate_bad_inputs(sim, tmp_path, capsys):
     _, plan, wp, ds = sim
     through_wall = tmp_path / "wall.csv"
     through_wall.write_text("6,5\n20,5\n")  # crosses the 207/208 partition at x = 13.8
-    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(through_wall), "--out",
-            str(tmp_path / "o")], capsys, through_wall, "wall")
-    _fails(["simulate", "--floorplan", str(tmp_path / "no.geojson"), "--trajectory", str(wp),
-            "--out", str(tmp_path / "o")], capsys, "no.geojson")
-    _fails(["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(ds)],
-           capsys, ds, "already exists")
+    _fails(
+        [
+            "simulate",
+            "--floorplan",
+            str(plan),
+            "--trajectory",
+            str(through_wall),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+        capsys,
+        through_wall,
+        "wall",
+    )
+    _fails(
+        [
+            "simulate",
+            "--floorplan",
+            str(tmp_path / "no.geojson"),
+            "--trajectory",
+            str(wp),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+        capsys,
+        "no.geojson",
+    )
+    _fails(
+        ["simulate", "--floorplan", str(plan), "--trajectory", str(wp), "--out", str(ds)],
+        capsys,
+        ds,
+        "already exists",
+    )
     assert not (tmp_path / "o").exists()
 
 
@@ -108,12 +162,27 @@ def test_localize_bad_inputs(sim, tmp_path, capsys):
     scan = sorted((broken / "scans").iterdir())[3]
     scan.rename(scan.with_name("99999.pcd"))
     _fails(["localize", str(broken), "--out", str(out)], capsys, "99999.pcd")
-    _fails(["localize", str(ds), "--floorplan", str(tmp_path / "x.ifc"), "--out", str(out)],
-           capsys, "x.ifc")
-    _fails(["localize", "--bag", str(tmp_path / "none.bag"), "--floorplan", str(plan), "--out",
-            str(out)], capsys, "none.bag")
-    _fails(["localize", "--bag", str(tmp_path / "none.bag"), "--out", str(out)], capsys,
-           "--floorplan")
+    _fails(
+        ["localize", str(ds), "--floorplan", str(tmp_path / "x.ifc"), "--out", str(out)],
+        capsys,
+        "x.ifc",
+    )
+    _fails(
+        [
+            "localize",
+            "--bag",
+            str(tmp_path / "none.bag"),
+            "--floorplan",
+            str(plan),
+            "--out",
+            str(out),
+        ],
+        capsys,
+        "none.bag",
+    )
+    _fails(
+        ["localize", "--bag", str(tmp_path / "none.bag"), "--out", str(out)], capsys, "--floorplan"
+    )
     _fails(["localize", str(ds), "--d-s", "-1", "--out", str(out)], capsys, "--d-s")
     assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".dec")]
@@ -125,9 +194,22 @@ def test_evaluate_bad_inputs(sim, tmp_path, capsys):
     shutil.copytree(ds, nogt)
     (nogt / "groundtruth.tum").unlink()
     dec = tmp_path / "dec.jsonl"
-    dec.write_text(json.dumps({"k": 1, "t": 12.0, "state": "DEFER", "anchor": None,
-                               "symmetry": None, "tau": None, "B1": 0, "B2": 0, "margin": 0})
-                   + "\n")
+    dec.write_text(
+        json.dumps(
+            {
+                "k": 1,
+                "t": 12.0,
+                "state": "DEFER",
+                "anchor": None,
+                "symmetry": None,
+                "tau": None,
+                "B1": 0,
+                "B2": 0,
+                "margin": 0,
+            }
+        )
+        + "\n"
+    )
     _fails(["evaluate", str(nogt), "--decisions", str(dec)], capsys, "groundtruth.tum")
     bad = tmp_path / "bad.jsonl"
     bad.write_text('{"k": 1, "state": "MAYBE"}\n')

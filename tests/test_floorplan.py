@@ -54,6 +54,7 @@ def test_rasters():
     fp = two_rooms()
     r = fp.rasterize(res=0.1)
     assert r.res == 0.1
+
     # Room ids at room centres; walls are -1 and have zero distance.
     def cell(x, y):
         ix = int((x - r.origin[0]) / r.res)

@@ -41,14 +41,26 @@ REG = make_register(PARAMS)
 def asym_plan() -> Floorplan:
     """Two rooms of different size, one L-shaped, joined by a door (no symmetry)."""
     walls = [
-        [[0, 0], [16, 0]], [[16, 0], [16, 8]], [[16, 8], [0, 8]], [[0, 8], [0, 0]],
-        [[9, 0], [9, 5]], [[9, 6.5], [9, 8]], [[0, 5.5], [3, 5.5]], [[3, 5.5], [3, 8]],
+        [[0, 0], [16, 0]],
+        [[16, 0], [16, 8]],
+        [[16, 8], [0, 8]],
+        [[0, 8], [0, 0]],
+        [[9, 0], [9, 5]],
+        [[9, 6.5], [9, 8]],
+        [[0, 5.5], [3, 5.5]],
+        [[3, 5.5], [3, 8]],
     ]
-    rooms = (Room("A", box(0.1, 0.1, 8.9, 7.9).difference(box(0, 5.4, 3.1, 8))),
-             Room("B", box(9.1, 0.1, 15.9, 7.9)))
-    return Floorplan(walls=np.asarray(walls, float), thickness=0.2, rooms=rooms,
-                     doors=(Door(np.array([[8.7, 5.75], [9.3, 5.75]]), ("A", "B")),),
-                     name="asym")
+    rooms = (
+        Room("A", box(0.1, 0.1, 8.9, 7.9).difference(box(0, 5.4, 3.1, 8))),
+        Room("B", box(9.1, 0.1, 15.9, 7.9)),
+    )
+    return Floorplan(
+        walls=np.asarray(walls, float),
+        thickness=0.2,
+        rooms=rooms,
+        doors=(Door(np.array([[8.7, 5.75], [9.3, 5.75]]), ("A", "B")),),
+        name="asym",
+    )
 
 
 def feats_for(fp):
@@ -60,11 +72,22 @@ def pad_batch(subs):
     """Batch of N slots (missing ones empty), capacity P."""
     b = batch(subs, P)
     n = len(subs)
-    pad = lambda a, fill=0: np.concatenate(  # noqa: E731
-        [np.asarray(a), np.full((N - n, *np.shape(a)[1:]), fill, np.asarray(a).dtype)])
-    return SubmapBatch(points=pad(b.points), origins=pad(b.origins), mask=pad(b.mask, False),
-                       X=pad(b.X), run=pad(b.run), window=pad(b.window), t=pad(b.t),
-                       n_dropped=pad(b.n_dropped))
+
+    def pad(a, fill=0):
+        return np.concatenate(
+            [np.asarray(a), np.full((N - n, *np.shape(a)[1:]), fill, np.asarray(a).dtype)]
+        )
+
+    return SubmapBatch(
+        points=pad(b.points),
+        origins=pad(b.origins),
+        mask=pad(b.mask, False),
+        X=pad(b.X),
+        run=pad(b.run),
+        window=pad(b.window),
+        t=pad(b.t),
+        n_dropped=pad(b.n_dropped),
+    )
 
 
 def hits(cands, i, Y, xy=0.5, deg=2.0):
@@ -123,8 +146,17 @@ def test_jit_and_no_jit_agree(asym):
     """Each stage kernel, eager vs jitted, on a tiny submap (the whole eager pipeline costs
     ~30 s of per-op dispatch; the jitted pipeline is covered by the other tests)."""
     fp, subs, _, _ = asym
-    tiny = FrontendParams(J=4, n_hough=8, n_prescreen=16, max_votes=64, hough_points=192,
-                          n_lines=8, n_corners=8, refine_steps=3, min_line_pts=8)
+    tiny = FrontendParams(
+        J=4,
+        n_hough=8,
+        n_prescreen=16,
+        max_votes=64,
+        hough_points=192,
+        n_lines=8,
+        n_corners=8,
+        refine_steps=3,
+        min_line_pts=8,
+    )
     pts, org, Y = subs[0]
     pts, org, ok = pts[::8][:192], org[::8][:192], np.ones(192, bool)
     f = feats_for(fp)
@@ -159,7 +191,9 @@ def test_sample_matches_bilinear_and_its_gradient(asym):
     # Exact near walls: a point 3 cm off a wall face (x = 0.1) reads 3 cm, inside reads < 0.
     np.testing.assert_allclose(
         verify.sample(r.origin, r.res, f4, np.float32([[0.13, 4.0], [0.05, 4.0]]), 10.0),
-        [0.03, -0.05], atol=1e-3)
+        [0.03, -0.05],
+        atol=1e-3,
+    )
 
 
 def test_refinement_improves_the_score_and_the_pose(asym):
@@ -248,9 +282,16 @@ def test_bad_inputs_give_reasons(asym):
     # A floor plan without walls: empty wall raster, no corners.
     f = feats_for(fp)
     r = f.rasters
-    nowall = Rasters(origin=r.origin, dist=np.full(SHAPE, 50.0, np.float32),
-                     wall=np.zeros(SHAPE, bool), room_id=r.room_id, inside=r.inside,
-                     adjacency=r.adjacency, room_centroids=r.room_centroids, res=r.res)
+    nowall = Rasters(
+        origin=r.origin,
+        dist=np.full(SHAPE, 50.0, np.float32),
+        wall=np.zeros(SHAPE, bool),
+        room_id=r.room_id,
+        inside=r.inside,
+        adjacency=r.adjacency,
+        room_centroids=r.room_centroids,
+        res=r.res,
+    )
     empty = tuple(np.zeros_like(np.asarray(a)) for a in floorplan_corners(fp, capacity=64))
     c = REG(b, build_features(None, PARAMS, rasters=nowall, corners=empty))
     assert [int(x) for x in c.reason] == [2, 1, 4, 1]

@@ -75,10 +75,13 @@ def test_bays_congruent_with_exact_pitch(sb):
     np.testing.assert_allclose(np.asarray(rel) - rel[0], 0.0, atol=1e-9)
 
 
-@pytest.mark.parametrize("scene_fn,expected", [
-    (three_rooms, [[1, 1, 0], [1, 1, 1], [0, 1, 1]]),
-    (symmetric_bays, [[1, 1, 0, 0], [1, 1, 1, 0], [0, 1, 1, 1], [0, 0, 1, 1]]),
-])
+@pytest.mark.parametrize(
+    "scene_fn,expected",
+    [
+        (three_rooms, [[1, 1, 0], [1, 1, 1], [0, 1, 1]]),
+        (symmetric_bays, [[1, 1, 0, 0], [1, 1, 1, 0], [0, 1, 1, 1], [0, 0, 1, 1]]),
+    ],
+)
 def test_door_adjacency(scene_fn, expected):
     fp = scene_fn().floorplan
     np.testing.assert_array_equal(fp.adjacency, np.array(expected, bool))
@@ -132,7 +135,8 @@ def test_trajectory_room_orders(tr, sb):
     for name in ("S1", "S2"):
         assert _room_sequence(sb, name) == ["R1", "R2", "R3", "R4"]
     np.testing.assert_allclose(
-        np.linalg.norm(sb.trajectories["S2"][0] - sb.trajectories["S1"][0]), 0.3)
+        np.linalg.norm(sb.trajectories["S2"][0] - sb.trajectories["S1"][0]), 0.3
+    )
 
 
 def test_trajectory_lengths(tr, sb):

@@ -91,7 +91,9 @@ def test_circular_mean_weights_and_mask():
 
 
 def test_mean_pose_masks_entries():
-    p = se2.make(jnp.asarray([0.0, 2.0, 50.0]), jnp.asarray([1.0, 3.0, 50.0]), jnp.asarray([3.1, -3.1, 0.0]))
+    p = se2.make(
+        jnp.asarray([0.0, 2.0, 50.0]), jnp.asarray([1.0, 3.0, 50.0]), jnp.asarray([3.1, -3.1, 0.0])
+    )
     m = np.asarray(se2.mean_pose(p, jnp.asarray([1.0, 1.0, 0.0], jnp.float32), axis=0))
     assert np.allclose(m[:2], [1.0, 2.0])
     assert abs(abs(m[2]) - np.pi) < 1e-3

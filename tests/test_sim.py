@@ -35,8 +35,9 @@ def _circle(radius, n=720, centre=(0.0, 0.0)):
 
 def _corridor(half_len=10.0, half_w=1.0):
     L, W = half_len, half_w
-    return np.array([[[-L, -W], [L, -W]], [[-L, W], [L, W]],
-                     [[-L, -W], [-L, W]], [[L, -W], [L, W]]], float)
+    return np.array(
+        [[[-L, -W], [L, -W]], [[-L, W], [L, W]], [[-L, -W], [-L, W]], [[L, -W], [L, W]]], float
+    )
 
 
 def _apply(pose, p):
@@ -115,8 +116,11 @@ def test_cast_is_deterministic_and_jit_free_kernel_agrees():
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(np.nan_to_num(a), np.nan_to_num(c))
     keys = jax.random.split(jax.random.PRNGKey(7), 2)
-    d = np.asarray(rc.cast_kernel(poses, segs, np.ones(4, bool), keys, 16, p.min_range,
-                                  p.max_range, p.sigma, p.dropout))
+    d = np.asarray(
+        rc.cast_kernel(
+            poses, segs, np.ones(4, bool), keys, 16, p.min_range, p.max_range, p.sigma, p.dropout
+        )
+    )
     np.testing.assert_allclose(a, d, atol=1e-5)
 
 
@@ -186,8 +190,7 @@ def test_frames_zero_drift_map_to_the_same_world(clean_sim, bays):
     np.testing.assert_allclose(np.asarray(rb.traj[0, 0]), 0.0, atol=1e-6)  # L = start pose
     # Every submap's anchor Y X^-1 is the hidden anchor.
     H = np.asarray(se2.anchor(truth.Y, np.asarray(sm.X, np.float64)))
-    np.testing.assert_allclose(H[:, :2], np.broadcast_to(truth.anchor[0, :2], (sm.n, 2)),
-                               atol=1e-3)
+    np.testing.assert_allclose(H[:, :2], np.broadcast_to(truth.anchor[0, :2], (sm.n, 2)), atol=1e-3)
     segs = bays.segments
     world = []
     for i in range(sm.n):
@@ -206,8 +209,9 @@ def test_frames_zero_drift_map_to_the_same_world(clean_sim, bays):
 
 
 def test_drift_distorts_submaps(bays):
-    drifty = SimParams(lidar=EXACT, trajectory=TrajectoryParams(drift_xy=0.02,
-                                                                drift_yaw_deg_per_m=1.0))
+    drifty = SimParams(
+        lidar=EXACT, trajectory=TrajectoryParams(drift_xy=0.02, drift_yaw_deg_per_m=1.0)
+    )
     sm, rb, truth, _ = simulate(bays, ["S1"], [6.0], [0], drifty)
     H = np.asarray(se2.anchor(truth.Y, np.asarray(sm.X, np.float64)))
     assert np.max(np.linalg.norm(H[:, :2] - truth.anchor[0, :2], axis=1)) > 0.05
@@ -231,8 +235,9 @@ def test_determinism_and_shared_scans(bays):
     # A run does not depend on what else is simulated with it.
     c = simulate(bays, ["S1"], [7.0], [2])
     r3 = np.asarray(a.submaps.run) == 3
-    np.testing.assert_array_equal(np.asarray(c.submaps.points)[:, :64],
-                                  np.asarray(a.submaps.points)[r3][:, :64])
+    np.testing.assert_array_equal(
+        np.asarray(c.submaps.points)[:, :64], np.asarray(a.submaps.points)[r3][:, :64]
+    )
 
 
 def test_unknown_trajectory_and_empty_inputs(bays):

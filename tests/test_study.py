@@ -15,14 +15,26 @@ from mfcl_jax.floorplan.scenes import BAY_PITCH, get_scene
 SCHEMA = {
     "policy_table": ["trajectory", "d_s", "single_shot", "support", "confidence", "ours"],
     "policy_rates": ["trajectory", "d_s", "policy", "seeds", "correct", "false_commit", "abstain"],
-    "selective_metrics": ["policy", "configs", "correct_commit", "false_commit", "abstain",
-                          "mean_commit_k"],
+    "selective_metrics": [
+        "policy",
+        "configs",
+        "correct_commit",
+        "false_commit",
+        "abstain",
+        "mean_commit_k",
+    ],
     "ablation": ["policy", "correct_commit", "false_commit"],
     "sensitivity": ["policy", "floors", "correct_commit", "false_commit"],
-    "density_immunity": ["policy", "pool", "candidates_to_k", "state_at_k", "room", "B1",
-                         "margin"],
-    "symmetric_sim": ["trajectory", "d_s", "seed", "ours_k", "no_probe_k", "no_probe_bays",
-                      "tau_mean_abs_err"],
+    "density_immunity": ["policy", "pool", "candidates_to_k", "state_at_k", "room", "B1", "margin"],
+    "symmetric_sim": [
+        "trajectory",
+        "d_s",
+        "seed",
+        "ours_k",
+        "no_probe_k",
+        "no_probe_bays",
+        "tau_mean_abs_err",
+    ],
     "symmetric_windows": ["trajectory", "k", "ours_state", "ours_tau", "no_probe_state"],
     "paper_comparison": ["section", "quantity", "paper", "ours (main seed)"],
     "timings": ["stage", "compile_s", "run_s"],
@@ -37,8 +49,16 @@ def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep")
     register_configs()
     with initialize(config_path="../conf", version_base="1.3"):
-        cfg = compose("sweep", overrides=["d_s=[5,6,7]", "seeds=2", f"out={out}",
-                                          "progress=false", "density_factor=4"])
+        cfg = compose(
+            "sweep",
+            overrides=[
+                "d_s=[5,6,7]",
+                "seeds=2",
+                f"out={out}",
+                "progress=false",
+                "density_factor=4",
+            ],
+        )
     tabs = run_study(to_study(cfg))
     scored = pd.read_csv(out / "raw" / "windows.csv.gz")
     firsts = pd.read_csv(out / "per_seed.csv")

@@ -3,6 +3,7 @@
 from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
 from mfcl_jax.decision.consensus import champions, group, leader_groups
 from mfcl_jax.decision.evaluate import (
+    batch_inputs,
     evaluate,
     evaluate_batch,
     evaluate_run,
@@ -54,6 +55,7 @@ __all__ = [
     "decide_prefix",
     "detect",
     "evaluate",
+    "batch_inputs",
     "evaluate_batch",
     "evaluate_run",
     "gate_maps",

@@ -123,6 +123,35 @@ def evaluate(
     return jax.lax.map(one, xs, batch_size=run_chunk)
 
 
+def batch_inputs(cands, submaps, runs, maps, params, var=None):
+    """The positional arguments of ``evaluate`` from the pipeline's batches.
+
+    Anchoring (``H = Y X^-1``) and the per-run gather happen here, on the way in.
+
+    Returns:
+        ``(args, n_bad)``: ``evaluate(*args)`` evaluates every decision; ``n_bad (R, K)`` counts
+        non-finite candidates that were rejected.
+    """
+    H = candidate_anchors(cands.pose, submaps.X)
+    H, s, m, n_bad = per_run(H, cands.score, cands.mask, runs.submap, runs.window_mask)
+    if np.ndim(params.tau_c) == 0:
+        params = DecisionParams.stack([params])
+    var = policies.variants() if var is None else var
+    args = (
+        H,
+        s,
+        m,
+        runs.traj,
+        runs.traj_mask,
+        runs.window_end,
+        runs.window_mask,
+        maps,
+        params,
+        var,
+    )
+    return args, n_bad
+
+
 def evaluate_batch(
     cands, submaps, runs, maps, params, var=None, n_cap: int = 3, run_chunk: int = 8
 ):
@@ -136,26 +165,8 @@ def evaluate_batch(
     Returns:
         ``(Decisions (R, K, S, V), n_bad (R, K))``.
     """
-    H = candidate_anchors(cands.pose, submaps.X)
-    H, s, m, n_bad = per_run(H, cands.score, cands.mask, runs.submap, runs.window_mask)
-    if np.ndim(params.tau_c) == 0:
-        params = DecisionParams.stack([params])
-    var = policies.variants() if var is None else var
-    out = evaluate(
-        H,
-        s,
-        m,
-        runs.traj,
-        runs.traj_mask,
-        runs.window_end,
-        runs.window_mask,
-        maps,
-        params,
-        var,
-        n_cap=n_cap,
-        run_chunk=run_chunk,
-    )
-    return out, n_bad
+    args, n_bad = batch_inputs(cands, submaps, runs, maps, params, var)
+    return evaluate(*args, n_cap=n_cap, run_chunk=run_chunk), n_bad
 
 
 def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.DataFrame:

@@ -41,17 +41,31 @@ def state_timeline(scored: pd.DataFrame, pitch: float, title: str):
         for row, pol in enumerate(pols):
             g = scored[(scored["trajectory"] == traj) & (scored["policy"] == pol)].sort_values("k")
             for _, r in g.iterrows():
-                ax.barh(row, 1.0, left=r["k"] - 0.5, color=STATE_COLOURS[r["state"]],
-                        edgecolor="white")
+                ax.barh(
+                    row, 1.0, left=r["k"] - 0.5, color=STATE_COLOURS[r["state"]], edgecolor="white"
+                )
             tau = np.hypot(g["tau_x"], g["tau_y"])
-            ax2.plot(g["k"], tau, "o-" if pol == "ours" else "x--", color="k" if pol == "ours"
-                     else "0.4", ms=4, lw=1, label=f"|tau| ({pol})")
+            ax2.plot(
+                g["k"],
+                tau,
+                "o-" if pol == "ours" else "x--",
+                color="k" if pol == "ours" else "0.4",
+                ms=4,
+                lw=1,
+                label=f"|tau| ({pol})",
+            )
             com = g[g["state"] == "COMMIT"]
             if len(com):
                 k0 = com["k"].iloc[0]
                 err = com["err_xy"].iloc[0]
-                ax.text(k0, row + 0.42, f"commit k={k0}\n{err:.2f} m ({err / pitch:.2f} bays)",
-                        fontsize=7, ha="left", va="bottom")
+                ax.text(
+                    k0,
+                    row + 0.42,
+                    f"commit k={k0}\n{err:.2f} m ({err / pitch:.2f} bays)",
+                    fontsize=7,
+                    ha="left",
+                    va="bottom",
+                )
         ax2.axhline(pitch, color="tab:blue", lw=0.8, ls=":", label=f"pitch {pitch:.2f} m")
         ax2.set_ylim(0, pitch * 2.2)
         ax2.set_ylabel("|tau| (m)")
@@ -80,8 +94,9 @@ def commit_clouds(panels, floorplan):
         for label, pts, colour, err in panel["clouds"]:
             if pts is None:
                 continue
-            ax.scatter(pts[:, 0], pts[:, 1], s=0.6, color=colour, alpha=0.6,
-                       label=f"{label} ({err:.2f} m)")
+            ax.scatter(
+                pts[:, 0], pts[:, 1], s=0.6, color=colour, alpha=0.6, label=f"{label} ({err:.2f} m)"
+            )
         tx, ty = panel["truth_xy"]
         ax.plot(tx, ty, marker="P", color="k", ms=9, ls="none", label="true position")
         ax.set_title(panel["title"], fontsize=9)
@@ -105,13 +120,22 @@ def anchor_space(H, score, top1, true_anchor, t_star, title):
     s = (s - s.min()) / max(np.ptp(s), 1e-9)
     ax.scatter(H[:, 0], H[:, 1], s=4 + 20 * s, color="0.75", label="all candidates")
     k = np.arange(len(top1))
-    sc = ax.scatter(top1[:, 0], top1[:, 1], c=k + 1, cmap="viridis", s=36, edgecolor="k",
-                    lw=0.4, label="champions (window colour)")
+    sc = ax.scatter(
+        top1[:, 0],
+        top1[:, 1],
+        c=k + 1,
+        cmap="viridis",
+        s=36,
+        edgecolor="k",
+        lw=0.4,
+        label="champions (window colour)",
+    )
     fig.colorbar(sc, ax=ax, label="window k")
     ax.plot(*true_anchor[:2], marker="P", color="red", ms=11, ls="none", label="true anchor")
     if t_star is not None and np.all(np.isfinite(t_star)):
-        ax.plot(*t_star[:2], marker="*", color="tab:green", ms=14, ls="none", mec="k",
-                label="our T*")
+        ax.plot(
+            *t_star[:2], marker="*", color="tab:green", ms=14, ls="none", mec="k", label="our T*"
+        )
     ax.set_xlabel("anchor x (m)")
     ax.set_ylabel("anchor y (m)")
     ax.set_title(title, fontsize=9)
@@ -132,10 +156,13 @@ def risk_coverage(firsts: pd.DataFrame, policies=FORCED + ("gate_only", "no_prob
             cov = g["committed"].mean()
             risk = g["false_commit"].sum() / max(g["committed"].sum(), 1)
             ax.scatter(cov, risk, marker=marker, s=60, color=f"C{i}", edgecolor="k", lw=0.4)
-            ax.annotate(f"{pol}", (cov, risk), fontsize=6, xytext=(4, 3),
-                        textcoords="offset points")
-    handles = [plt.Line2D([], [], marker=m, ls="none", color="0.5", label=s)
-               for s, m in zip(sorted(firsts["scene"].unique()), "os^D", strict=False)]
+            ax.annotate(
+                f"{pol}", (cov, risk), fontsize=6, xytext=(4, 3), textcoords="offset points"
+            )
+    handles = [
+        plt.Line2D([], [], marker=m, ls="none", color="0.5", label=s)
+        for s, m in zip(sorted(firsts["scene"].unique()), "os^D", strict=False)
+    ]
     ax.legend(handles=handles, fontsize=7, loc="upper left")
     ax.set_xlabel("coverage (runs with a commit)")
     ax.set_ylabel("risk (false commits / commits)")

@@ -65,8 +65,9 @@ def score_windows(dec: pd.DataFrame, runs_batch, submaps, truth, floorplans: dic
     dec["true_room"] = true_room
     # The room check applies where both placements fall in a named room: in a doorway the
     # robot is in no room, and then the metric bounds alone decide.
-    both_named = np.array([r is not None and t is not None for r, t in zip(room, true_room,
-                                                                            strict=True)])
+    both_named = np.array(
+        [r is not None and t is not None for r, t in zip(room, true_room, strict=True)]
+    )
     wrong_room = both_named & (dec["room"].to_numpy() != dec["true_room"].to_numpy())
     dec["correct"] = (
         has

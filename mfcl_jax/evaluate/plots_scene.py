@@ -26,26 +26,40 @@ def draw_floorplan(ax, fp, label_rooms: bool = True) -> None:
     """Rooms filled and named, wall solids in dark grey, doors as thick green bars."""
     for i, room in enumerate(fp.rooms):
         xy = np.asarray(room.polygon.exterior.coords)
-        ax.add_patch(MplPolygon(xy, closed=True, fc=_ROOM_COLOURS[i % len(_ROOM_COLOURS)],
-                                ec="none", zorder=0))
+        ax.add_patch(
+            MplPolygon(
+                xy, closed=True, fc=_ROOM_COLOURS[i % len(_ROOM_COLOURS)], ec="none", zorder=0
+            )
+        )
         if label_rooms:
             # Low in the room, on a pale box: the trajectories mostly run through the middle.
             x0, y0, x1, y1 = room.polygon.bounds
-            ax.text(room.polygon.centroid.x, y0 + 0.35 * (y1 - y0), room.name, ha="center",
-                    va="center", fontsize=13, fontweight="bold", color="#444444", zorder=8,
-                    bbox=dict(fc="white", ec="none", alpha=0.6, pad=1.5))
+            ax.text(
+                room.polygon.centroid.x,
+                y0 + 0.35 * (y1 - y0),
+                room.name,
+                ha="center",
+                va="center",
+                fontsize=13,
+                fontweight="bold",
+                color="#444444",
+                zorder=8,
+                bbox=dict(fc="white", ec="none", alpha=0.6, pad=1.5),
+            )
     for poly in _polys(fp.wall_solid):
         # A closed building's wall solid has the rooms as holes: draw it as one compound path
         # (exterior counter-clockwise, holes clockwise) so the holes stay transparent.
         poly = orient(poly, 1.0)
         rings = [poly.exterior, *poly.interiors]
         path = MplPath.make_compound_path(
-            *[MplPath(np.asarray(r.coords), closed=True) for r in rings])
+            *[MplPath(np.asarray(r.coords), closed=True) for r in rings]
+        )
         ax.add_patch(PathPatch(path, fc="#3a3a3a", ec="#3a3a3a", lw=0.5, zorder=2))
     for door in fp.doors:
         seg = np.asarray(door.segment)
-        ax.plot(seg[:, 0], seg[:, 1], color="#2e8b57", lw=6, solid_capstyle="butt", zorder=3,
-                alpha=0.8)
+        ax.plot(
+            seg[:, 0], seg[:, 1], color="#2e8b57", lw=6, solid_capstyle="butt", zorder=3, alpha=0.8
+        )
 
 
 def draw_scene(ax, scene, params: TrajectoryParams | None = None, title=None) -> None:
@@ -53,17 +67,40 @@ def draw_scene(ax, scene, params: TrajectoryParams | None = None, title=None) ->
     params = TrajectoryParams() if params is None else params
     draw_floorplan(ax, scene.floorplan)
     if len(scene.clutter):
-        ax.add_collection(LineCollection(scene.clutter, colors="#e07b00", linewidths=1.4,
-                                         zorder=4, label="clutter / as-built (not in plan)"))
+        ax.add_collection(
+            LineCollection(
+                scene.clutter,
+                colors="#e07b00",
+                linewidths=1.4,
+                zorder=4,
+                label="clutter / as-built (not in plan)",
+            )
+        )
     for i, (name, wp) in enumerate(scene.trajectories.items()):
         path = sample_path(wp, params).poses
         col = _TRAJ_COLOURS[i % len(_TRAJ_COLOURS)]
-        ax.plot(path[:, 0], path[:, 1], color=col, lw=1.6, zorder=5,
-                label=f"{name} ({path.shape[0] * params.scan_spacing:.0f} m)")
+        ax.plot(
+            path[:, 0],
+            path[:, 1],
+            color=col,
+            lw=1.6,
+            zorder=5,
+            label=f"{name} ({path.shape[0] * params.scan_spacing:.0f} m)",
+        )
         step = max(1, len(path) // 10)
-        ax.quiver(path[::step, 0], path[::step, 1], np.cos(path[::step, 2]),
-                  np.sin(path[::step, 2]), color=col, angles="xy", scale_units="xy",
-                  scale=1.2, width=0.0025, headwidth=4, zorder=6)
+        ax.quiver(
+            path[::step, 0],
+            path[::step, 1],
+            np.cos(path[::step, 2]),
+            np.sin(path[::step, 2]),
+            color=col,
+            angles="xy",
+            scale_units="xy",
+            scale=1.2,
+            width=0.0025,
+            headwidth=4,
+            zorder=6,
+        )
         ax.plot(*path[0, :2], "o", ms=9, mfc="white", mec=col, mew=2.2, zorder=7)
         ax.plot(*path[-1, :2], "s", ms=6, color=col, zorder=7)
     ax.set_aspect("equal")
@@ -85,9 +122,13 @@ def plot_scenes(scenes, out=None):
     widths = [s.floorplan.bounds[2] - s.floorplan.bounds[0] + 2 for s in scenes]
     heights = [s.floorplan.bounds[3] - s.floorplan.bounds[1] + 2 for s in scenes]
     scale = 16.0 / max(widths)  # inches per metre
-    fig, axes = plt.subplots(len(scenes), 1, squeeze=False,
-                             figsize=(17.0, scale * sum(heights) + 2.2 * len(scenes)),
-                             gridspec_kw={"height_ratios": [h + 4 for h in heights]})
+    fig, axes = plt.subplots(
+        len(scenes),
+        1,
+        squeeze=False,
+        figsize=(17.0, scale * sum(heights) + 2.2 * len(scenes)),
+        gridspec_kw={"height_ratios": [h + 4 for h in heights]},
+    )
     for ax, scene in zip(axes[:, 0], scenes, strict=True):
         draw_scene(ax, scene, title=f"{scene.name}: {scene.description}")
     fig.tight_layout(h_pad=2.5)

@@ -78,7 +78,9 @@ def policy_rates(firsts: pd.DataFrame, policies=FORCED) -> pd.DataFrame:
                 "correct": _rate(g["correct"]),
                 "false_commit": _rate(g["false_commit"]),
                 "abstain": _rate(~g["committed"]),
-                "median_err_xy": float(np.nanmedian(g["err_xy"])) if g["committed"].any() else math.nan,
+                "median_err_xy": float(np.nanmedian(g["err_xy"]))
+                if g["committed"].any()
+                else math.nan,
                 "mean_k": float(np.nanmean(g["k"])) if g["committed"].any() else math.nan,
             }
         )
@@ -141,7 +143,9 @@ def symmetric_sim(scored: pd.DataFrame, pitch: float, seed: int, d_s: float) -> 
             row[f"{pol}_B1"] = int(r["B1"])
             row[f"{pol}_margin"] = int(r["margin"])
             row[f"{pol}_err_xy"] = r["err_xy"]
-            row[f"{pol}_bay_multiple"] = r["err_xy"] / pitch if np.isfinite(r["err_xy"]) else math.nan
+            row[f"{pol}_bay_multiple"] = (
+                r["err_xy"] / pitch if np.isfinite(r["err_xy"]) else math.nan
+            )
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -235,7 +235,9 @@ class Floorplan:
 
         def tf(p):
             p = np.asarray(p, float)
-            return np.stack([c * p[..., 0] - s * p[..., 1] + x, s * p[..., 0] + c * p[..., 1] + y], -1)
+            return np.stack(
+                [c * p[..., 0] - s * p[..., 1] + x, s * p[..., 0] + c * p[..., 1] + y], -1
+            )
 
         def tf_geom(g):
             return shapely.transform(g, lambda q: tf(q))

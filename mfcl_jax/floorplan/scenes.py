@@ -52,8 +52,10 @@ class Scene:
         trajs = {k: np.asarray(v, dtype=np.float64) for k, v in self.trajectories.items()}
         for k, v in trajs.items():
             if v.ndim != 2 or v.shape[1] != 2 or len(v) < 2:
-                raise ValueError(f"scene {self.name!r}: trajectory {k!r} needs (P>=2, 2) "
-                                 f"waypoints, got shape {v.shape}")
+                raise ValueError(
+                    f"scene {self.name!r}: trajectory {k!r} needs (P>=2, 2) "
+                    f"waypoints, got shape {v.shape}"
+                )
         object.__setattr__(self, "trajectories", trajs)
 
     @property
@@ -79,8 +81,9 @@ def _wall_with_doors(x: float, y0: float, y1: float, gaps: list[tuple[float, flo
 
 
 def _clutter(rects: list[tuple[float, float, float, float]], extra=()) -> np.ndarray:
-    parts = [rect_segments(*r) for r in rects] + [np.asarray(e, float).reshape(-1, 2, 2)
-                                                  for e in extra]
+    parts = [rect_segments(*r) for r in rects] + [
+        np.asarray(e, float).reshape(-1, 2, 2) for e in extra
+    ]
     return np.concatenate(parts, axis=0)
 
 
@@ -156,33 +159,79 @@ def three_rooms() -> Scene:
     )
     rects = [
         # 207: a row of desks along the south wall, cabinets on the north wall, a printer
-        (2.6, 1.0, 4.2, 1.8), (4.6, 1.0, 6.2, 1.8), (8.4, 1.0, 10.0, 1.8),
-        (3.0, 10.5, 4.8, 11.05), (5.4, 10.5, 6.3, 11.05), (12.6, 2.8, 13.5, 3.5),
+        (2.6, 1.0, 4.2, 1.8),
+        (4.6, 1.0, 6.2, 1.8),
+        (8.4, 1.0, 10.0, 1.8),
+        (3.0, 10.5, 4.8, 11.05),
+        (5.4, 10.5, 6.3, 11.05),
+        (12.6, 2.8, 13.5, 3.5),
         # 208: two desk islands, a meeting table, cabinets on both long walls
-        (16.0, 2.0, 19.2, 3.6), (22.0, 1.6, 25.2, 3.2), (19.8, 9.4, 23.0, 10.4),
-        (15.0, 0.15, 16.8, 0.6), (25.6, 10.6, 27.4, 11.05), (26.8, 0.15, 28.2, 0.7),
+        (16.0, 2.0, 19.2, 3.6),
+        (22.0, 1.6, 25.2, 3.2),
+        (19.8, 9.4, 23.0, 10.4),
+        (15.0, 0.15, 16.8, 0.6),
+        (25.6, 10.6, 27.4, 11.05),
+        (26.8, 0.15, 28.2, 0.7),
         # 209: desks in the south-west, a bookcase row, cabinets along the east wall
-        (30.0, 1.2, 33.2, 2.0), (31.0, 3.2, 34.2, 4.0), (36.2, 10.5, 39.8, 11.05),
-        (41.9, 2.0, 42.45, 4.2), (41.9, 8.6, 42.45, 10.0),
+        (30.0, 1.2, 33.2, 2.0),
+        (31.0, 3.2, 34.2, 4.0),
+        (36.2, 10.5, 39.8, 11.05),
+        (41.9, 2.0, 42.45, 4.2),
+        (41.9, 8.6, 42.45, 10.0),
     ]
     # As-built partitions (thin double-faced walls with an end cap).
     stub_209 = rect_segments(38.55, 0.15, 38.65, 3.55)
     glass_207 = rect_segments(9.6, 4.55, 12.1, 4.65)
     clutter = _clutter(rects, extra=(stub_209, glass_207))
     trajectories = {
-        "T1": np.array([
-            [37.4, 6.4], [34.0, 7.2], [31.0, 8.6], [26.0, 8.6], [21.0, 6.2], [16.2, 8.6],
-            [11.6, 8.6], [7.6, 6.8], [5.8, 5.4], [8.4, 4.2], [11.4, 6.4], [11.6, 8.6],
-            [16.2, 8.6], [21.0, 5.4], [26.0, 8.6], [31.0, 8.6], [34.4, 6.8],
-        ]),
-        "T2": np.array([
-            [3.6, 7.4], [7.8, 7.6], [11.6, 8.6], [16.2, 8.6], [21.0, 6.2], [26.0, 8.6],
-            [31.0, 8.6], [35.0, 6.0], [40.6, 6.2], [40.6, 8.2], [35.6, 8.6], [31.0, 8.6],
-            [26.0, 8.6], [21.5, 5.6], [18.0, 5.4],
-        ]),
+        "T1": np.array(
+            [
+                [37.4, 6.4],
+                [34.0, 7.2],
+                [31.0, 8.6],
+                [26.0, 8.6],
+                [21.0, 6.2],
+                [16.2, 8.6],
+                [11.6, 8.6],
+                [7.6, 6.8],
+                [5.8, 5.4],
+                [8.4, 4.2],
+                [11.4, 6.4],
+                [11.6, 8.6],
+                [16.2, 8.6],
+                [21.0, 5.4],
+                [26.0, 8.6],
+                [31.0, 8.6],
+                [34.4, 6.8],
+            ]
+        ),
+        "T2": np.array(
+            [
+                [3.6, 7.4],
+                [7.8, 7.6],
+                [11.6, 8.6],
+                [16.2, 8.6],
+                [21.0, 6.2],
+                [26.0, 8.6],
+                [31.0, 8.6],
+                [35.0, 6.0],
+                [40.6, 6.2],
+                [40.6, 8.2],
+                [35.6, 8.6],
+                [31.0, 8.6],
+                [26.0, 8.6],
+                [21.5, 5.6],
+                [18.0, 5.4],
+            ]
+        ),
     }
-    return Scene("three_rooms", fp, clutter, trajectories,
-                 description="three adjacent non-congruent rooms 207-209 (multimodal aliases)")
+    return Scene(
+        "three_rooms",
+        fp,
+        clutter,
+        trajectories,
+        description="three adjacent non-congruent rooms 207-209 (multimodal aliases)",
+    )
 
 
 # ---------------------------------------------------------------------------- symmetric bays
@@ -208,8 +257,12 @@ def symmetric_bays() -> Scene:
     """
     h, t = _SB_H, _SB_T
     xs = [BAY_PITCH * k for k in range(_SB_N + 1)]
-    walls = [[[xs[0], 0.0], [xs[-1], 0.0]], [[xs[-1], h], [xs[0], h]],
-             [[xs[0], 0.0], [xs[0], h]], [[xs[-1], 0.0], [xs[-1], h]]]
+    walls = [
+        [[xs[0], 0.0], [xs[-1], 0.0]],
+        [[xs[-1], h], [xs[0], h]],
+        [[xs[0], 0.0], [xs[0], h]],
+        [[xs[-1], 0.0], [xs[-1], h]],
+    ]
     for x in xs[1:-1]:
         walls += _wall_with_doors(x, 0.0, h, [_SB_DOOR])
     rooms = tuple(
@@ -245,8 +298,13 @@ def symmetric_bays() -> Scene:
         "S1": np.array([start, *path]),
         "S2": np.array([start + [0.3, 0.0], *path]),
     }
-    return Scene("symmetric_bays", fp, _clutter(rects), trajectories,
-                 description="four congruent bays, pitch 7.30 m, sealed ends (lattice aliases)")
+    return Scene(
+        "symmetric_bays",
+        fp,
+        _clutter(rects),
+        trajectories,
+        description="four congruent bays, pitch 7.30 m, sealed ends (lattice aliases)",
+    )
 
 
 def _clean(poly: Polygon) -> Polygon:

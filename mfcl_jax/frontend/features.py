@@ -92,8 +92,9 @@ def _line_peaks(q, ok, p, n_peaks):
     # so the accumulator is padded with its flipped ends. A tiny ramp breaks plateaus.
     acc = acc + 1e-4 * jnp.arange(T * R, dtype=jnp.float32).reshape(T, R) / (T * R)
     ext = jnp.concatenate([acc[-wt:, ::-1], acc, acc[:wt, ::-1]], 0)
-    mx = jax.lax.reduce_window(ext, -jnp.inf, jax.lax.max, (2 * wt + 1, 2 * wr + 1), (1, 1),
-                               ((0, 0), (wr, wr)))
+    mx = jax.lax.reduce_window(
+        ext, -jnp.inf, jax.lax.max, (2 * wt + 1, 2 * wr + 1), (1, 1), ((0, 0), (wr, wr))
+    )
     peak = (acc >= mx) & (acc >= 1.0)
     v, k = jax.lax.top_k(jnp.where(peak, acc, 0.0).ravel(), n_peaks)
     t, r = k // R, k % R

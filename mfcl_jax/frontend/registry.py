@@ -108,20 +108,40 @@ class FrontendParams:
 
     def __post_init__(self):
         if self.refine_lr is not None:
-            raise ValueError(f"FrontendParams: refine_lr={self.refine_lr!r} is no longer used "
-                             "(refinement steps are Gauss-Newton-preconditioned, no learning "
-                             "rate); use refine_steps, sigma_refine, refine_max_step, yaw_lever")
+            raise ValueError(
+                f"FrontendParams: refine_lr={self.refine_lr!r} is no longer used "
+                "(refinement steps are Gauss-Newton-preconditioned, no learning "
+                "rate); use refine_steps, sigma_refine, refine_max_step, yaw_lever"
+            )
         if not 1 <= self.J <= self.n_hough <= self.n_prescreen <= self.max_votes:
             raise ValueError(
                 "FrontendParams: need 1 <= J <= n_hough <= n_prescreen <= max_votes, got "
                 f"{self.J=}, {self.n_hough=}, {self.n_prescreen=}, {self.max_votes=}"
             )
-        for name in ("hough_points", "n_lines", "n_corners", "max_votes", "verify_points",
-                     "refine_points", "ray_samples", "prescreen_points", "refine_steps"):
+        for name in (
+            "hough_points",
+            "n_lines",
+            "n_corners",
+            "max_votes",
+            "verify_points",
+            "refine_points",
+            "ray_samples",
+            "prescreen_points",
+            "refine_steps",
+        ):
             if getattr(self, name) < 1:
                 raise ValueError(f"FrontendParams: {name} must be >= 1, got {getattr(self, name)}")
-        for name in ("cell", "line_rho_res", "rho_max", "inlier_band", "sigma_occ", "sigma_free",
-                     "sigma_refine", "refine_max_step", "yaw_lever"):
+        for name in (
+            "cell",
+            "line_rho_res",
+            "rho_max",
+            "inlier_band",
+            "sigma_occ",
+            "sigma_free",
+            "sigma_refine",
+            "refine_max_step",
+            "yaw_lever",
+        ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FrontendParams: {name} must be > 0, got {getattr(self, name)}")
 
@@ -150,8 +170,16 @@ class FloorplanFeatures:
 
 jax.tree_util.register_dataclass(
     FloorplanFeatures,
-    data_fields=["rasters", "sdf4", "pen4", "corner_pos", "corner_a1", "corner_a2",
-                 "corner_kind", "corner_valid"],
+    data_fields=[
+        "rasters",
+        "sdf4",
+        "pen4",
+        "corner_pos",
+        "corner_a1",
+        "corner_a2",
+        "corner_kind",
+        "corner_valid",
+    ],
     meta_fields=[],
 )
 
@@ -170,14 +198,25 @@ def _pad_corners(corners, capacity: int):
         out[:k] = v[:k]
         return out
 
-    return (fit(pos.reshape(-1, 2), 0), fit(a1.reshape(-1), 0), fit(a2.reshape(-1), 0),
-            fit(kind.reshape(-1), 0), fit(valid.reshape(-1), False))
+    return (
+        fit(pos.reshape(-1, 2), 0),
+        fit(a1.reshape(-1), 0),
+        fit(a2.reshape(-1), 0),
+        fit(kind.reshape(-1), 0),
+        fit(valid.reshape(-1), False),
+    )
 
 
-def build_features(fp, params: FrontendParams = FrontendParams(), res: float = 0.10,
-                   rasters: Rasters | None = None, corners=None, shape=None,
-                   n_rooms: int | None = None,
-                   corner_capacity: int | None = None) -> FloorplanFeatures:
+def build_features(
+    fp,
+    params: FrontendParams = FrontendParams(),
+    res: float = 0.10,
+    rasters: Rasters | None = None,
+    corners=None,
+    shape=None,
+    n_rooms: int | None = None,
+    corner_capacity: int | None = None,
+) -> FloorplanFeatures:
     """Builds ``FloorplanFeatures`` from a ``Floorplan`` (or from given rasters + corners).
 
     Args:
@@ -218,8 +257,9 @@ def build_features(fp, params: FrontendParams = FrontendParams(), res: float = 0
     )
 
 
-def common_features(floorplans, params: FrontendParams = FrontendParams(), res: float = 0.10,
-                    multiple: int = 64) -> list[FloorplanFeatures]:
+def common_features(
+    floorplans, params: FrontendParams = FrontendParams(), res: float = 0.10, multiple: int = 64
+) -> list[FloorplanFeatures]:
     """Features of several buildings padded to one shape bucket (one compilation for all).
 
     Args:
@@ -239,8 +279,12 @@ def common_features(floorplans, params: FrontendParams = FrontendParams(), res: 
     shape = (up(max(r.shape[0] for r in rs)), up(max(r.shape[1] for r in rs)))
     n_rooms = max(r.n_rooms for r in rs)
     cap = up(max(len(fp.corners[0]) for fp in fps))
-    return [build_features(fp, params, res, rasters=r, shape=shape, n_rooms=n_rooms,
-                           corner_capacity=cap) for fp, r in zip(fps, rs, strict=True)]
+    return [
+        build_features(
+            fp, params, res, rasters=r, shape=shape, n_rooms=n_rooms, corner_capacity=cap
+        )
+        for fp, r in zip(fps, rs, strict=True)
+    ]
 
 
 def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendParams):
@@ -251,22 +295,30 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
     pts, org, ok, n_valid = sub(p.hough_points)
     lines = features.detect_lines(pts, org, ok, p)
     corners = features.detect_corners(lines, ok, p)
-    plan = (feats.corner_pos, feats.corner_a1, feats.corner_a2, feats.corner_kind,
-            feats.corner_valid)
+    plan = (
+        feats.corner_pos,
+        feats.corner_a1,
+        feats.corner_a2,
+        feats.corner_kind,
+        feats.corner_valid,
+    )
     votes, w = hough.corner_votes(corners, plan, p)
     peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
 
     def scorer(n):
         vp, vo, vok, _ = sub(n)
         q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
-        return jax.vmap(lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ,
-                                               p.lambda_free))
+        return jax.vmap(
+            lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ, p.lambda_free)
+        )
 
     has_walls = jnp.any(feats.rasters.wall)
     reason = jnp.where(
-        n_valid == 0, 1,
-        jnp.where(n_valid < p.min_points, 2,
-                  jnp.where(~has_walls, 4, jnp.where(~jnp.any(peak_ok), 3, 0))),
+        n_valid == 0,
+        1,
+        jnp.where(
+            n_valid < p.min_points, 2, jnp.where(~has_walls, 4, jnp.where(~jnp.any(peak_ok), 3, 0))
+        ),
     ).astype(jnp.int32)
     peak_ok &= reason == 0
 
@@ -294,10 +346,21 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
     earlier = jnp.arange(p.J)[None, :] < jnp.arange(p.J)[:, None]
     keep = ok1 & ~jnp.any(close & earlier & ok1[None, :], axis=1)
     pose1, sc1, keep = rank(pose1, sc1, keep, p.J)
-    debug = dict(pose0=pose0, refined=refined, ok0=ok0, n_lines=jnp.sum(lines["valid"]),
-                 n_corners=jnp.sum(corners["valid"]), walls=_wall_pairs(lines, p))
-    return (jnp.where(keep[:, None], pose1, 0.0), jnp.where(keep, sc1, -jnp.inf), keep, reason,
-            debug)
+    debug = dict(
+        pose0=pose0,
+        refined=refined,
+        ok0=ok0,
+        n_lines=jnp.sum(lines["valid"]),
+        n_corners=jnp.sum(corners["valid"]),
+        walls=_wall_pairs(lines, p),
+    )
+    return (
+        jnp.where(keep[:, None], pose1, 0.0),
+        jnp.where(keep, sc1, -jnp.inf),
+        keep,
+        reason,
+        debug,
+    )
 
 
 def _wall_pairs(lines, p, min_count: float = 30.0):

@@ -91,8 +91,10 @@ def plan_fields(fp, rasters, sigma_free: float, band: float = 0.6):
         exact = shapely.distance(fp.wall_solid.boundary, shapely.points(x, y))
         sdf[iy, ix] = np.where(wall[iy, ix], -exact, exact)
     sdf = np.minimum(sdf, FAR)
-    pen = np.maximum(np.exp(-0.5 * (np.maximum(sdf, 0.0) / sigma_free) ** 2),
-                     1.0 - np.asarray(rasters.inside, float))
+    pen = np.maximum(
+        np.exp(-0.5 * (np.maximum(sdf, 0.0) / sigma_free) ** 2),
+        1.0 - np.asarray(rasters.inside, float),
+    )
     return sdf.astype(np.float32), pen.astype(np.float32)
 
 

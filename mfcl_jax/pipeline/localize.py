@@ -163,9 +163,14 @@ class Localizer:
         mask = np.zeros((1, cap), bool)
         pts[0, : len(p)], org[0, : len(o)], mask[0, : len(p)] = p, o, True
         return SubmapBatch(
-            points=pts, origins=org, mask=mask, X=np.asarray(X, np.float32)[None],
-            run=np.zeros(1, np.int32), window=np.asarray([k], np.int32),
-            t=np.asarray([t], np.float32), n_dropped=np.zeros(1, np.int32),
+            points=pts,
+            origins=org,
+            mask=mask,
+            X=np.asarray(X, np.float32)[None],
+            run=np.zeros(1, np.int32),
+            window=np.asarray([k], np.int32),
+            t=np.asarray([t], np.float32),
+            n_dropped=np.zeros(1, np.int32),
         )
 
     def run(self, seq: ScanSequence, variant: str = "ours") -> Iterator[WindowResult]:
@@ -173,8 +178,12 @@ class Localizer:
         kf, bounds = self.windows(seq)
         # Buffers sized up front (powers of two): one decision compilation per size bucket.
         init = SelectiveInitializer(
-            self._maps, self.params.decision, variant=variant,
-            k_cap=bucket(len(bounds), 8), j_cap=self.params.frontend.J, t_cap=bucket(len(kf), 256),
+            self._maps,
+            self.params.decision,
+            variant=variant,
+            k_cap=bucket(len(bounds), 8),
+            j_cap=self.params.frontend.J,
+            t_cap=bucket(len(kf), 256),
         )
         prev_end = -1
         for k, (j0, j1) in enumerate(bounds):
@@ -189,8 +198,14 @@ class Localizer:
             prev_end = j1
             dec = init.update(cand.pose[0][m], cand.score[0][m], X, traj, t=t)
             yield WindowResult(
-                decision=dec, first=int(kf[j0]), last=i1, t=t, X=np.asarray(X),
-                n_points=len(p), voxel=voxel, n_candidates=int(m.sum()),
+                decision=dec,
+                first=int(kf[j0]),
+                last=i1,
+                t=t,
+                X=np.asarray(X),
+                n_points=len(p),
+                voxel=voxel,
+                n_candidates=int(m.sum()),
                 frontend_reason=int(cand.reason[0]),
                 rethinned=voxel > self.params.submap.voxel,
             )

@@ -20,8 +20,15 @@ from mfcl_jax.io.errors import atomic_write_text
 __all__ = ["occupancy_grid", "write_rosmap"]
 
 
-def occupancy_grid(poses, scans, res: float = 0.10, max_range: float = 15.0,
-                   min_hits: int = 2, occ_ratio: float = 0.25, margin: float = 1.0):
+def occupancy_grid(
+    poses,
+    scans,
+    res: float = 0.10,
+    max_range: float = 15.0,
+    min_hits: int = 2,
+    occ_ratio: float = 0.25,
+    margin: float = 1.0,
+):
     """Occupied / free grids from sensor poses in the map frame and sensor-frame scans.
 
     Args:
@@ -48,7 +55,7 @@ def occupancy_grid(poses, scans, res: float = 0.10, max_range: float = 15.0,
     starts = np.concatenate(starts)
     lo = np.minimum(ends.min(0), poses[:, :2].min(0)) - margin
     hi = np.maximum(ends.max(0), poses[:, :2].max(0)) + margin
-    W, H = (np.ceil((hi - lo) / res).astype(int) + 1)
+    W, H = np.ceil((hi - lo) / res).astype(int) + 1
     hits = np.zeros(H * W, np.int64)
     passes = np.zeros(H * W, np.int64)
 
@@ -88,7 +95,13 @@ def write_rosmap(yaml_path, occ, free, res: float, origin) -> Path:
     tmp = pgm.with_name(f".{pgm.name}.tmp")
     Image.fromarray(np.flipud(img)).save(tmp, format="PPM")
     tmp.replace(pgm)
-    meta = dict(image=pgm.name, resolution=float(res), origin=[float(origin[0]),
-                float(origin[1]), 0.0], negate=0, occupied_thresh=0.65, free_thresh=0.196)
+    meta = dict(
+        image=pgm.name,
+        resolution=float(res),
+        origin=[float(origin[0]), float(origin[1]), 0.0],
+        negate=0,
+        occupied_thresh=0.65,
+        free_thresh=0.196,
+    )
     atomic_write_text(yaml_path, yaml.safe_dump(meta, sort_keys=False))
     return yaml_path

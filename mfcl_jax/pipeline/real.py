@@ -83,33 +83,82 @@ def route(fp, rooms, through: float = 0.8, extra: dict | None = None) -> np.ndar
 
 # ----------------------------------------------------------------------------- cases
 OFFICE = dict(
-    building="Office_A", file="ifc/Office_A_20110811.ifc", storey="Level 1",
+    building="Office_A",
+    file="ifc/Office_A_20110811.ifc",
+    storey="Level 1",
     walks={
-        "corridor_121": (None, [(4.0, -13.35), (45.0, -13.35)],
-                         "straight 41 m corridor: long aperture alias along its axis"),
-        "open_office_to_113": (["140 OPEN OFFICE", "121 CORRIDOR", "142 CORRIDOR",
-                                "141 CORRIDOR", "113 OPEN OFFICE"], None,
-                               "open office, two corridors, open office: distinctive"),
-        "noc_team_room": (["121 CORRIDOR", "153 VEST/ENTRY", "158 NOC", "155 TEAM RM"], None,
-                          "corridor -> vestibule -> NOC -> team room"),
-        "offices_141": (["141 CORRIDOR", "129 CHAPLAIN", "141 CORRIDOR", "130 SR HR SGT",
-                         "141 CORRIDOR", "131 MESSAGE CENTER"], None,
-                        "in and out of three near-identical small offices on corridor 141"),
+        "corridor_121": (
+            None,
+            [(4.0, -13.35), (45.0, -13.35)],
+            "straight 41 m corridor: long aperture alias along its axis",
+        ),
+        "open_office_to_113": (
+            ["140 OPEN OFFICE", "121 CORRIDOR", "142 CORRIDOR", "141 CORRIDOR", "113 OPEN OFFICE"],
+            None,
+            "open office, two corridors, open office: distinctive",
+        ),
+        "noc_team_room": (
+            ["121 CORRIDOR", "153 VEST/ENTRY", "158 NOC", "155 TEAM RM"],
+            None,
+            "corridor -> vestibule -> NOC -> team room",
+        ),
+        "offices_141": (
+            [
+                "141 CORRIDOR",
+                "129 CHAPLAIN",
+                "141 CORRIDOR",
+                "130 SR HR SGT",
+                "141 CORRIDOR",
+                "131 MESSAGE CENTER",
+            ],
+            None,
+            "in and out of three near-identical small offices on corridor 141",
+        ),
     },
 )
 DUPLEX = dict(
-    building="Duplex", file="ifc/Duplex_A_20110907_Architecture.ifc", storey="Level 1",
+    building="Duplex",
+    file="ifc/Duplex_A_20110907_Architecture.ifc",
+    storey="Level 1",
     walks={
         # The Living Room - Foyer "door" of each unit lies on an uncut wall in the IFC cut, so
         # walks go through the kitchen.
-        "unit_A_tour": (["A101 Foyer", "A103 Kitchen", "A102 Living Room", "A103 Kitchen",
-                         "A101 Foyer", "A104 Bathroom 1"], None,
-                        "unit A only; unit B is its 180-degree rotation"),
-        "unit_B_tour": (["B101 Foyer", "B103 Kitchen", "B102 Living Room", "B103 Kitchen",
-                         "B101 Foyer", "B104 Bathroom 1"], None, "the same walk in unit B"),
-        "unit_A_stair": (["A102 Living Room", "A103 Kitchen", "A101 Foyer", "A105 Stair",
-                          "A101 Foyer", "A104 Bathroom 1"], None,
-                         "unit A: living room to stair and bathroom"),
+        "unit_A_tour": (
+            [
+                "A101 Foyer",
+                "A103 Kitchen",
+                "A102 Living Room",
+                "A103 Kitchen",
+                "A101 Foyer",
+                "A104 Bathroom 1",
+            ],
+            None,
+            "unit A only; unit B is its 180-degree rotation",
+        ),
+        "unit_B_tour": (
+            [
+                "B101 Foyer",
+                "B103 Kitchen",
+                "B102 Living Room",
+                "B103 Kitchen",
+                "B101 Foyer",
+                "B104 Bathroom 1",
+            ],
+            None,
+            "the same walk in unit B",
+        ),
+        "unit_A_stair": (
+            [
+                "A102 Living Room",
+                "A103 Kitchen",
+                "A101 Foyer",
+                "A105 Stair",
+                "A101 Foyer",
+                "A104 Bathroom 1",
+            ],
+            None,
+            "unit A: living room to stair and bathroom",
+        ),
     },
 )
 
@@ -131,8 +180,9 @@ def _run(loc: Localizer, case: Case, fp, out: Path) -> dict:
     from mfcl_jax.io import write_decisions
 
     write_decisions(out / "decisions" / f"{case.group}__{case.name}.jsonl", decs)
-    scored = score_decisions(decs, case.seq.times, case.seq.odometry, case.gt_times, case.gt,
-                             fp, where=case.name)
+    scored = score_decisions(
+        decs, case.seq.times, case.seq.odometry, case.gt_times, case.gt, fp, where=case.name
+    )
     s = summarize(scored)
     dt = time.perf_counter() - t0
     states = "".join({"COMMIT": "C", "DEFER": "d", "AMBIGUOUS": "a"}[d["state"]] for d in decs)
@@ -141,13 +191,21 @@ def _run(loc: Localizer, case: Case, fp, out: Path) -> dict:
     length = float(np.sum(np.hypot(*np.diff(case.gt[:, :2], axis=0).T)))
     com = scored[scored["state"] == "COMMIT"]
     return dict(
-        group=case.group, case=case.name, length_m=round(length, 1), windows=s["windows"],
-        first_commit_k=s["first_commit_k"], final_state=s["final_state"],
-        final_symmetry=s["final_symmetry"], err_xy_m=s["err_xy"], err_yaw_deg=s["err_yaw_deg"],
+        group=case.group,
+        case=case.name,
+        length_m=round(length, 1),
+        windows=s["windows"],
+        first_commit_k=s["first_commit_k"],
+        final_state=s["final_state"],
+        final_symmetry=s["final_symmetry"],
+        err_xy_m=s["err_xy"],
+        err_yaw_deg=s["err_yaw_deg"],
         verdict=("-" if s["correct"] is None else "correct" if s["correct"] else "FALSE"),
         commits_correct=f"{s['commits_correct']}/{s['commits']}",
         max_err_xy_commits=float(com["err_xy"].max()) if len(com) else math.nan,
-        states=states, seconds=round(dt, 1), note=case.note,
+        states=states,
+        seconds=round(dt, 1),
+        note=case.note,
     )
 
 
@@ -171,17 +229,26 @@ def _plot(fp, case: Case, scored, png: Path) -> None:
         A = np.array([c["x"], c["y"], np.deg2rad(c["yaw_deg"])])
         placed = np.asarray(se2.compose(A, case.seq.odometry), np.float64)
         ok = bool(c["correct"])
-        ax.plot(placed[:, 0], placed[:, 1], "--", color="tab:green" if ok else "tab:red",
-                lw=1.2, label=f"odometry placed by first commit (k={int(c['k'])})")
+        ax.plot(
+            placed[:, 0],
+            placed[:, 1],
+            "--",
+            color="tab:green" if ok else "tab:red",
+            lw=1.2,
+            label=f"odometry placed by first commit (k={int(c['k'])})",
+        )
         ax.plot(c["placed_x"], c["placed_y"], "o", color="tab:green" if ok else "tab:red", ms=7)
         ax.plot(c["true_x"], c["true_y"], "x", color="k", ms=8)
     ax.plot(case.gt[0, 0], case.gt[0, 1], "^", color="k", ms=7, label="start")
     last = scored.iloc[-1] if len(scored) else None
-    end = "no windows" if last is None else f"final {last['state']}" + (
-        f" ({last['symmetry']})" if isinstance(last["symmetry"], str) else "")
+    end = (
+        "no windows"
+        if last is None
+        else f"final {last['state']}"
+        + (f" ({last['symmetry']})" if isinstance(last["symmetry"], str) else "")
+    )
     first = f"first commit k={int(com.iloc[0]['k'])}" if len(com) else "no commit"
-    ax.set_title(f"{case.group} / {case.name}: {len(scored)} windows, {first}, {end}",
-                 fontsize=9)
+    ax.set_title(f"{case.group} / {case.name}: {len(scored)} windows, {first}, {end}", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     fig.savefig(png, dpi=110, bbox_inches="tight")
     plt.close(fig)
@@ -221,8 +288,9 @@ def _stretches(poses, starts, length):
     return [(a, np.flatnonzero((s >= a) & (s < a + length))) for a in starts]
 
 
-def _intel_cases(params: LocalizeParams, out: Path, starts=(0.0, 170.0, 340.0),
-                 length: float = 80.0) -> list[dict]:
+def _intel_cases(
+    params: LocalizeParams, out: Path, starts=(0.0, 170.0, 340.0), length: float = 80.0
+) -> list[dict]:
     import jax
 
     from mfcl_jax.io import read_carmen
@@ -246,11 +314,19 @@ def _intel_cases(params: LocalizeParams, out: Path, starts=(0.0, 170.0, 340.0),
         true = log.poses[idx]
         key = jax.random.fold_in(jax.random.PRNGKey(0), int(a))
         noise = jax.random.normal(key, true.shape)
-        odo = np.asarray(odometry(true, true[0], noise, DRIFT_XY, np.deg2rad(DRIFT_YAW_DEG)),
-                         np.float64)
+        odo = np.asarray(
+            odometry(true, true[0], noise, DRIFT_XY, np.deg2rad(DRIFT_YAW_DEG)), np.float64
+        )
         seq = ScanSequence(log.times[idx], [log.scans[i] for i in idx], odo, name)
-        case = Case("Intel_log", name, f"corrected-log scans, derived odometry ({DRIFT_XY:.0%}, "
-                    f"{DRIFT_YAW_DEG} deg/m), held-out map", seq, log.times[idx], true)
+        case = Case(
+            "Intel_log",
+            name,
+            f"corrected-log scans, derived odometry ({DRIFT_XY:.0%}, "
+            f"{DRIFT_YAW_DEG} deg/m), held-out map",
+            seq,
+            log.times[idx],
+            true,
+        )
         rows.append(_run(Localizer(fp, params), case, fp, out))
     return rows
 
@@ -281,14 +357,18 @@ def bag_ground_truth(bag, log, tol: float = 0.02):
     k = np.where(abs(bt[k - 1] - log.times - off) < abs(bt[k] - log.times - off), k - 1, k)
     ok = abs(bt[k] - log.times - off) < tol
     li, bi = np.flatnonzero(ok), k[ok]
+
     def radii(p):
         return np.round(np.hypot(p[:, 0], p[:, 1]) * 1000).astype(np.int64)
 
-    agree = np.array([
-        np.mean(np.isin(radii(log.scans[i]), radii(bag.scans[b])))
-        if len(bag.scans[b]) and len(log.scans[i]) else 0.0
-        for b, i in zip(bi, li, strict=True)
-    ])
+    agree = np.array(
+        [
+            np.mean(np.isin(radii(log.scans[i]), radii(bag.scans[b])))
+            if len(bag.scans[b]) and len(log.scans[i])
+            else 0.0
+            for b, i in zip(bi, li, strict=True)
+        ]
+    )
     return off, bi, li, agree
 
 
@@ -298,14 +378,23 @@ def _bag_cases(params: LocalizeParams, out: Path, starts=(0.0, 170.0), length: f
     log = read_carmen(DATA / "laser" / "intel-corrected.log.gz")
     t0 = time.perf_counter()
     bag = read_bag(DATA / "laser" / "intel.orig.bag", "/scan", "/odom")
-    _log(f"Intel bag: {len(bag)} scans paired with odometry ({bag.unpaired} unpaired) in "
-         f"{time.perf_counter() - t0:.1f} s")
+    _log(
+        f"Intel bag: {len(bag)} scans paired with odometry ({bag.unpaired} unpaired) in "
+        f"{time.perf_counter() - t0:.1f} s"
+    )
     off, bi, li, agree = bag_ground_truth(bag, log)
     good = agree > 0.95
-    _log(f"  bag <-> corrected log: offset {off:.4f} s, {len(bi)}/{len(log)} log scans matched, "
-         f"{int(good.sum())} with > 95 % identical points (median {np.median(agree):.3f})")
-    info = dict(offset_s=off, matched=len(bi), log_scans=len(log), identical=int(good.sum()),
-                median_agree=float(np.median(agree)))
+    _log(
+        f"  bag <-> corrected log: offset {off:.4f} s, {len(bi)}/{len(log)} log scans matched, "
+        f"{int(good.sum())} with > 95 % identical points (median {np.median(agree):.3f})"
+    )
+    info = dict(
+        offset_s=off,
+        matched=len(bi),
+        log_scans=len(log),
+        identical=int(good.sum()),
+        median_agree=float(np.median(agree)),
+    )
     bi, li = bi[good], li[good]
     seq_all = from_bag(bag, "intel.orig.bag")
     rows = []
@@ -329,8 +418,15 @@ def _bag_cases(params: LocalizeParams, out: Path, starts=(0.0, 170.0), length: f
         excl = np.zeros(len(log), bool)
         excl[idx] = True
         fp = _intel_map(log, excl, out, f"intel_without_{int(a)}-{int(a + length)}m")
-        case = Case("Intel_bag", name, f"raw bag scans + real odometry; gt from matched "
-                    f"corrected poses (max gap {gap:.1f} s), held-out map", seq, seq.times, gt)
+        case = Case(
+            "Intel_bag",
+            name,
+            f"raw bag scans + real odometry; gt from matched "
+            f"corrected poses (max gap {gap:.1f} s), held-out map",
+            seq,
+            seq.times,
+            gt,
+        )
         rows.append(_run(Localizer(fp, params), case, fp, out))
     return rows, info
 
@@ -340,24 +436,43 @@ def _write_tables(rows: list[dict], info: dict, out: Path) -> None:
 
     df = pd.DataFrame(rows)
     atomic_write_text(out / "summary.csv", df.to_csv(index=False))
-    cols = ["case", "length_m", "windows", "first_commit_k", "final_state", "final_symmetry",
-            "err_xy_m", "err_yaw_deg", "verdict", "commits_correct", "max_err_xy_commits"]
-    md = ["# Real-data results", "",
-          "Generated by `python -m experiments.real`; every case uses the same default",
-          "`LocalizeParams` (d_s = 6 m, step 2 m). Errors are those of the first commit",
-          "(robot pose T* X_k vs ground truth at the decision's t); correct means < 1 m and",
-          "< 5 deg. `states`: one letter per window (d DEFER, a AMBIGUOUS, C COMMIT).", ""]
+    cols = [
+        "case",
+        "length_m",
+        "windows",
+        "first_commit_k",
+        "final_state",
+        "final_symmetry",
+        "err_xy_m",
+        "err_yaw_deg",
+        "verdict",
+        "commits_correct",
+        "max_err_xy_commits",
+    ]
+    md = [
+        "# Real-data results",
+        "",
+        "Generated by `python -m experiments.real`; every case uses the same default",
+        "`LocalizeParams` (d_s = 6 m, step 2 m). Errors are those of the first commit",
+        "(robot pose T* X_k vs ground truth at the decision's t); correct means < 1 m and",
+        "< 5 deg. `states`: one letter per window (d DEFER, a AMBIGUOUS, C COMMIT).",
+        "",
+    ]
     for g, sub in df.groupby("group", sort=False):
         md += [f"## {g}", "", sub[cols].to_markdown(index=False, floatfmt=".2f"), ""]
         for _, r in sub.iterrows():
             md.append(f"- `{r['case']}` ({r['note']}): `{r['states']}` ({r['seconds']} s)")
         md.append("")
     if info:
-        md += ["## Intel bag ground truth", "",
-               f"Corrected-log times + {info['offset_s']:.4f} s = bag scan stamps: "
-               f"{info['matched']}/{info['log_scans']} log scans matched in time, "
-               f"{info['identical']} of them with > 95 % identical points "
-               f"(median {info['median_agree']:.3f}).", ""]
+        md += [
+            "## Intel bag ground truth",
+            "",
+            f"Corrected-log times + {info['offset_s']:.4f} s = bag scan stamps: "
+            f"{info['matched']}/{info['log_scans']} log scans matched in time, "
+            f"{info['identical']} of them with > 95 % identical points "
+            f"(median {info['median_agree']:.3f}).",
+            "",
+        ]
     atomic_write_text(out / "summary.md", "\n".join(md))
 
 

@@ -29,23 +29,29 @@ def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
     lo, hi = times[0] - 1e-3, times[-1] + 1e-3
     bad = (t < lo) | (t > hi) | ~np.isfinite(t)
     if bad.any():
-        raise DataError(
-            f"{where}: decision time t={t[bad][0]} outside [{times[0]}, {times[-1]}]"
-        )
+        raise DataError(f"{where}: decision time t={t[bad][0]} outside [{times[0]}, {times[-1]}]")
     yaw = np.unwrap(poses[:, 2])
-    out = np.stack([np.interp(t, times, poses[:, 0]), np.interp(t, times, poses[:, 1]),
-                    np.interp(t, times, yaw)], -1)
+    out = np.stack(
+        [
+            np.interp(t, times, poses[:, 0]),
+            np.interp(t, times, poses[:, 1]),
+            np.interp(t, times, yaw),
+        ],
+        -1,
+    )
     j = np.clip(np.searchsorted(times, t), 0, len(times) - 1)
-    j = np.where((j > 0) & (np.abs(times[np.maximum(j - 1, 0)] - t) < np.abs(times[j] - t)),
-                 j - 1, j)
+    j = np.where(
+        (j > 0) & (np.abs(times[np.maximum(j - 1, 0)] - t) < np.abs(times[j] - t)), j - 1, j
+    )
     exact = np.abs(times[j] - t) < 1e-3
     out[exact] = poses[j[exact]]
     out[:, 2] = np.arctan2(np.sin(out[:, 2]), np.cos(out[:, 2]))
     return out
 
 
-def score_decisions(decisions, odom_times, odom, gt_times, gt, floorplan=None,
-                    where: str = "<decisions>") -> pd.DataFrame:
+def score_decisions(
+    decisions, odom_times, odom, gt_times, gt, floorplan=None, where: str = "<decisions>"
+) -> pd.DataFrame:
     """Per-decision table with placement errors.
 
     Args:
@@ -62,12 +68,23 @@ def score_decisions(decisions, odom_times, odom, gt_times, gt, floorplan=None,
     rows = []
     for d in decisions:
         a = d["anchor"] or {}
-        rows.append(dict(k=int(d["k"]), t=d["t"], state=d["state"], symmetry=d["symmetry"],
-                         B1=d["B1"], B2=d["B2"], margin=d["margin"],
-                         x=a.get("x", math.nan), y=a.get("y", math.nan),
-                         yaw_deg=a.get("yaw_deg", math.nan)))
-    df = pd.DataFrame(rows, columns=["k", "t", "state", "symmetry", "B1", "B2", "margin", "x",
-                                     "y", "yaw_deg"])
+        rows.append(
+            dict(
+                k=int(d["k"]),
+                t=d["t"],
+                state=d["state"],
+                symmetry=d["symmetry"],
+                B1=d["B1"],
+                B2=d["B2"],
+                margin=d["margin"],
+                x=a.get("x", math.nan),
+                y=a.get("y", math.nan),
+                yaw_deg=a.get("yaw_deg", math.nan),
+            )
+        )
+    df = pd.DataFrame(
+        rows, columns=["k", "t", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
+    )
     if df.empty:
         return df.assign(err_xy=[], err_yaw_deg=[], correct=[])
     if df["t"].isna().any():
@@ -87,8 +104,9 @@ def score_decisions(decisions, odom_times, odom, gt_times, gt, floorplan=None,
     df["placed_x"] = np.where(has, placed[:, 0], np.nan)
     df["placed_y"] = np.where(has, placed[:, 1], np.nan)
     if floorplan is not None:
-        df["room"] = [r if h else None for r, h in
-                      zip(floorplan.room_at(placed[:, :2]), has, strict=True)]
+        df["room"] = [
+            r if h else None for r, h in zip(floorplan.room_at(placed[:, :2]), has, strict=True)
+        ]
         df["true_room"] = floorplan.room_at(Y[:, :2])
     return df
 
@@ -100,9 +118,19 @@ def summarize(scored: pd.DataFrame) -> dict:
         ``windows, first_commit_k, first_commit_t, err_xy, err_yaw_deg, correct,
         false_commit, final_state, final_symmetry, commits, commits_correct``.
     """
-    out = dict(windows=len(scored), first_commit_k=None, first_commit_t=None,
-               err_xy=math.nan, err_yaw_deg=math.nan, correct=None, false_commit=False,
-               final_state=None, final_symmetry=None, commits=0, commits_correct=0)
+    out = dict(
+        windows=len(scored),
+        first_commit_k=None,
+        first_commit_t=None,
+        err_xy=math.nan,
+        err_yaw_deg=math.nan,
+        correct=None,
+        false_commit=False,
+        final_state=None,
+        final_symmetry=None,
+        commits=0,
+        commits_correct=0,
+    )
     if scored.empty:
         return out
     s = scored.sort_values("k")
@@ -117,8 +145,12 @@ def summarize(scored: pd.DataFrame) -> dict:
         c = com.iloc[0]
         out.update(first_commit_k=int(c["k"]), first_commit_t=float(c["t"]))
         if "err_xy" in c:
-            out.update(err_xy=float(c["err_xy"]), err_yaw_deg=float(c["err_yaw_deg"]),
-                       correct=bool(c["correct"]), false_commit=not bool(c["correct"]))
+            out.update(
+                err_xy=float(c["err_xy"]),
+                err_yaw_deg=float(c["err_yaw_deg"]),
+                correct=bool(c["correct"]),
+                false_commit=not bool(c["correct"]),
+            )
     return out
 
 

@@ -83,8 +83,9 @@ def check_waypoints(fp, wp, where: str = "<waypoints>") -> None:
             )
 
 
-def simulate_scans(fp, waypoints, seed: int = 0, params: SimParams | None = None,
-                   tag: str = "user"):
+def simulate_scans(
+    fp, waypoints, seed: int = 0, params: SimParams | None = None, tag: str = "user"
+):
     """True poses, drifting odometry and sensor-frame scans along ``waypoints``.
 
     Returns:
@@ -96,10 +97,19 @@ def simulate_scans(fp, waypoints, seed: int = 0, params: SimParams | None = None
     key = jax.random.fold_in(jax.random.PRNGKey(int(seed)), zlib.crc32(tag.encode()) & 0x7FFFFFFF)
     noise = jax.random.normal(jax.random.fold_in(key, 1), true.shape)
     tp = params.trajectory
-    odo = np.asarray(odometry(jnp.asarray(true, jnp.float32), jnp.asarray(true[0], jnp.float32),
-                              noise, tp.drift_xy, np.deg2rad(tp.drift_yaw_deg_per_m)), np.float64)
-    keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(key, 0),
-                                                           jnp.arange(len(true)))
+    odo = np.asarray(
+        odometry(
+            jnp.asarray(true, jnp.float32),
+            jnp.asarray(true[0], jnp.float32),
+            noise,
+            tp.drift_xy,
+            np.deg2rad(tp.drift_yaw_deg_per_m),
+        ),
+        np.float64,
+    )
+    keys = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(
+        jax.random.fold_in(key, 0), jnp.arange(len(true))
+    )
     segs = fp.wall_faces
     if len(segs) == 0:
         raise DataError(f"{fp.source}: floor plan has no wall faces to simulate a LiDAR against")
@@ -109,8 +119,15 @@ def simulate_scans(fp, waypoints, seed: int = 0, params: SimParams | None = None
     return path.t, true, odo, scans
 
 
-def simulate_dataset(floorplan, waypoints, out, seed: int = 0, params: SimParams | None = None,
-                     overwrite: bool = False, where: str = "<waypoints>") -> Path:
+def simulate_dataset(
+    floorplan,
+    waypoints,
+    out,
+    seed: int = 0,
+    params: SimParams | None = None,
+    overwrite: bool = False,
+    where: str = "<waypoints>",
+) -> Path:
     """Writes a dataset folder (atomically) simulated along ``waypoints`` in ``floorplan``.
 
     Args:

@@ -79,11 +79,13 @@ def _run_key(seed: int, scene: str, traj: str) -> jax.Array:
 @jax.jit
 def _odometry_batch(true_poses, anchors, noise, drift_xy, drift_yaw):
     return jax.vmap(odometry, in_axes=(0, 0, 0, None, None))(
-        true_poses, anchors, noise, drift_xy, drift_yaw)
+        true_poses, anchors, noise, drift_xy, drift_yaw
+    )
 
 
-def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
-             params: SimParams | None = None) -> Simulation:
+def simulate(
+    scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,), params: SimParams | None = None
+) -> Simulation:
     """Simulates runs of a scene: every trajectory x d_s x seed.
 
     Args:
@@ -108,13 +110,16 @@ def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
     names = list(scene.trajectories) if trajectory_names is None else list(trajectory_names)
     for n in names:
         if n not in scene.trajectories:
-            raise KeyError(f"scene {scene.name!r} has no trajectory {n!r}; "
-                           f"it has {sorted(scene.trajectories)}")
+            raise KeyError(
+                f"scene {scene.name!r} has no trajectory {n!r}; it has {sorted(scene.trajectories)}"
+            )
     d_s_values = [float(d) for d in d_s_values]
     seeds = [int(s) for s in seeds]
     if not names or not d_s_values or not seeds:
-        raise ValueError(f"simulate needs at least one trajectory, d_s and seed; got "
-                         f"{names=}, {d_s_values=}, {seeds=}")
+        raise ValueError(
+            f"simulate needs at least one trajectory, d_s and seed; got "
+            f"{names=}, {d_s_values=}, {seeds=}"
+        )
 
     # --- true paths (seed independent) and the (trajectory, seed) pairs -------------------
     paths = {n: sample_path(scene.trajectories[n], params.trajectory) for n in names}
@@ -130,19 +135,26 @@ def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
     # --- odometry: one jitted, vmapped call -------------------------------------------------
     noise = jnp.stack([jax.random.normal(jax.random.fold_in(k, 1), (t_max, 3)) for k in base])
     tp = params.trajectory
-    odo = np.asarray(_odometry_batch(
-        jnp.asarray(true_pad, jnp.float32), jnp.asarray(anchors, jnp.float32), noise,
-        jnp.float32(tp.drift_xy), jnp.float32(np.deg2rad(tp.drift_yaw_deg_per_m))),
-        dtype=np.float64)
+    odo = np.asarray(
+        _odometry_batch(
+            jnp.asarray(true_pad, jnp.float32),
+            jnp.asarray(anchors, jnp.float32),
+            noise,
+            jnp.float32(tp.drift_xy),
+            jnp.float32(np.deg2rad(tp.drift_yaw_deg_per_m)),
+        ),
+        dtype=np.float64,
+    )
 
     # --- ray casting: every scan of every pair in one call ---------------------------------
     counts = [len(paths[n].poses) for n, _ in pairs]
     all_poses = np.concatenate([paths[n].poses for n, _ in pairs])
-    all_keys = jnp.concatenate([
-        jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(k, 0),
-                                                        jnp.arange(c))
-        for k, c in zip(base, counts, strict=True)
-    ])
+    all_keys = jnp.concatenate(
+        [
+            jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(k, 0), jnp.arange(c))
+            for k, c in zip(base, counts, strict=True)
+        ]
+    )
     n_scan = len(all_poses)
     s_cap = bucket(n_scan, minimum=256)
     segs = scene.segments
@@ -151,8 +163,11 @@ def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
     seg_pad[: len(segs)] = segs
     seg_valid = np.arange(m_cap) < len(segs)
     poses_pad = _pad_rows(all_poses, s_cap)
-    keys_pad = jnp.concatenate(
-        [all_keys, jnp.zeros((s_cap - n_scan, 2), all_keys.dtype)]) if s_cap > n_scan else all_keys
+    keys_pad = (
+        jnp.concatenate([all_keys, jnp.zeros((s_cap - n_scan, 2), all_keys.dtype)])
+        if s_cap > n_scan
+        else all_keys
+    )
     ranges = cast(poses_pad, seg_pad, params.lidar, key=keys_pad, seg_valid=seg_valid)
     pts = np.asarray(scan_points(ranges), dtype=np.float64)[:n_scan]
     offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -165,7 +180,7 @@ def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
         pi = pairs.index((n, s))
         c = counts[pi]
         X = odo[pi, :c]
-        scans = pts[offsets[pi]:offsets[pi] + c]
+        scans = pts[offsets[pi] : offsets[pi] + c]
         wins = window_bounds(travelled(X), d, params.submap.step)
         for w, (j0, j1) in enumerate(wins):
             p, o = build_submap(scans, X, int(j0), int(j1), params.submap)
@@ -174,14 +189,29 @@ def simulate(scene, trajectory_names=None, d_s_values=(6.0,), seeds=(0,),
         run_true.append(paths[n].poses)
         run_t.append(paths[n].t)
         run_windows.append(wins[:, 1])
-        rows.append(dict(scene=scene.name, trajectory=n, d_s=d, seed=s, run=r, n_scans=c,
-                         n_windows=len(wins), length_m=float(paths[n].s[-1])))
-    runs = pd.DataFrame(rows, columns=["scene", "trajectory", "d_s", "seed", "run", "n_scans",
-                                       "n_windows", "length_m"])
+        rows.append(
+            dict(
+                scene=scene.name,
+                trajectory=n,
+                d_s=d,
+                seed=s,
+                run=r,
+                n_scans=c,
+                n_windows=len(wins),
+                length_m=float(paths[n].s[-1]),
+            )
+        )
+    runs = pd.DataFrame(
+        rows,
+        columns=["scene", "trajectory", "d_s", "seed", "run", "n_scans", "n_windows", "length_m"],
+    )
     sub_batch, truth_y = _pack_submaps(subs, run_traj, run_true, run_t, params.submap)
     run_batch, truth_traj = _pack_runs(run_traj, run_true, run_t, run_windows, subs)
-    truth = Truth(traj=truth_traj, anchor=np.asarray(anchors, np.float64)[
-        [pairs.index((n, s)) for n, _, s in order]], Y=truth_y)
+    truth = Truth(
+        traj=truth_traj,
+        anchor=np.asarray(anchors, np.float64)[[pairs.index((n, s)) for n, _, s in order]],
+        Y=truth_y,
+    )
     return Simulation(sub_batch, run_batch, truth, runs)
 
 
@@ -212,9 +242,16 @@ def _pack_submaps(subs, run_traj, run_true, run_t, sp: SubmapParams):
         dropped[i] = len(p) - k
         X[i], Y[i] = run_traj[r][j1], run_true[r][j1]
         run[i], window[i], t[i] = r, w, run_t[r][j1]
-    batch = SubmapBatch(points=jnp.asarray(points), origins=jnp.asarray(origins),
-                        mask=jnp.asarray(mask), X=jnp.asarray(X), run=jnp.asarray(run),
-                        window=jnp.asarray(window), t=t, n_dropped=jnp.asarray(dropped))
+    batch = SubmapBatch(
+        points=jnp.asarray(points),
+        origins=jnp.asarray(origins),
+        mask=jnp.asarray(mask),
+        X=jnp.asarray(X),
+        run=jnp.asarray(run),
+        window=jnp.asarray(window),
+        t=t,
+        n_dropped=jnp.asarray(dropped),
+    )
     return batch, Y
 
 
@@ -234,7 +271,12 @@ def _pack_runs(run_traj, run_true, run_t, run_windows, subs):
         window_mask[r, : len(w)] = True
     for i, (r, w, *_rest) in enumerate(subs):
         submap[r, w] = i
-    batch = RunBatch(traj=jnp.asarray(traj), traj_t=traj_t, traj_mask=jnp.asarray(traj_mask),
-                     window_end=jnp.asarray(window_end), window_mask=jnp.asarray(window_mask),
-                     submap=jnp.asarray(submap))
+    batch = RunBatch(
+        traj=jnp.asarray(traj),
+        traj_t=traj_t,
+        traj_mask=jnp.asarray(traj_mask),
+        window_end=jnp.asarray(window_end),
+        window_mask=jnp.asarray(window_mask),
+        submap=jnp.asarray(submap),
+    )
     return batch, true

@@ -67,8 +67,10 @@ def _cross(a, b):
 def _first_hit(pose, segments, seg_valid, dirs_local):
     """Distance to the nearest segment along each beam of one pose; inf where none."""
     c, s = jnp.cos(pose[2]), jnp.sin(pose[2])
-    d = jnp.stack([c * dirs_local[:, 0] - s * dirs_local[:, 1],
-                   s * dirs_local[:, 0] + c * dirs_local[:, 1]], axis=-1)  # (B, 2)
+    d = jnp.stack(
+        [c * dirs_local[:, 0] - s * dirs_local[:, 1], s * dirs_local[:, 0] + c * dirs_local[:, 1]],
+        axis=-1,
+    )  # (B, 2)
     a = segments[:, 0]  # (M, 2)
     e = segments[:, 1] - a
     w = a - pose[:2]
@@ -84,8 +86,9 @@ def _first_hit(pose, segments, seg_valid, dirs_local):
     return jnp.min(jnp.where(hit, t, jnp.inf), axis=1)
 
 
-def cast_kernel(poses, segments, seg_valid, keys, n_beams, min_range, max_range, sigma, dropout,
-                chunk=32):
+def cast_kernel(
+    poses, segments, seg_valid, keys, n_beams, min_range, max_range, sigma, dropout, chunk=32
+):
     """Ray casts many poses (pure; ``n_beams`` and ``chunk`` must be static under jit).
 
     Args:
@@ -117,8 +120,9 @@ def cast_kernel(poses, segments, seg_valid, keys, n_beams, min_range, max_range,
 
 @partial(jax.jit, static_argnames=("n_beams",))
 def _cast_jit(poses, segments, seg_valid, keys, n_beams, min_range, max_range, sigma, dropout):
-    return cast_kernel(poses, segments, seg_valid, keys, n_beams, min_range, max_range, sigma,
-                       dropout)
+    return cast_kernel(
+        poses, segments, seg_valid, keys, n_beams, min_range, max_range, sigma, dropout
+    )
 
 
 def cast(poses, segments, params: LidarParams = LidarParams(), key=None, seg_valid=None):
@@ -142,15 +146,24 @@ def cast(poses, segments, params: LidarParams = LidarParams(), key=None, seg_val
         raise ValueError(f"segments must be (M, 2, 2), got shape {segments.shape}")
     if not bool(jnp.all(jnp.isfinite(poses))):
         raise ValueError("cast: poses contain NaN or inf")
-    seg_valid = (jnp.ones(segments.shape[0], bool) if seg_valid is None
-                 else jnp.asarray(seg_valid, bool))
+    seg_valid = (
+        jnp.ones(segments.shape[0], bool) if seg_valid is None else jnp.asarray(seg_valid, bool)
+    )
     key = jax.random.PRNGKey(0) if key is None else jnp.asarray(key)
     keys = key if key.ndim == 2 else jax.random.split(key, poses.shape[0])
     if keys.shape[0] != poses.shape[0]:
         raise ValueError(f"cast: {keys.shape[0]} keys for {poses.shape[0]} poses")
-    return _cast_jit(poses, segments, seg_valid, keys, int(params.n_beams),
-                     jnp.float32(params.min_range), jnp.float32(params.max_range),
-                     jnp.float32(params.sigma), jnp.float32(params.dropout))
+    return _cast_jit(
+        poses,
+        segments,
+        seg_valid,
+        keys,
+        int(params.n_beams),
+        jnp.float32(params.min_range),
+        jnp.float32(params.max_range),
+        jnp.float32(params.sigma),
+        jnp.float32(params.dropout),
+    )
 
 
 def scan_points(ranges, n_beams: int | None = None):

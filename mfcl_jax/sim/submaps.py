@@ -113,8 +113,8 @@ def build_submap(scan_pts, X, j0: int, j1: int, params: SubmapParams = SubmapPar
         drift relative to ``S_i``.
     """
     X = np.asarray(X, dtype=np.float64)
-    rel = _between(X[j1], X[j0:j1 + 1][::-1])  # latest scan first
-    pts = np.asarray(scan_pts[j0:j1 + 1][::-1], dtype=np.float64)  # (n_s, B, 2)
+    rel = _between(X[j1], X[j0 : j1 + 1][::-1])  # latest scan first
+    pts = np.asarray(scan_pts[j0 : j1 + 1][::-1], dtype=np.float64)  # (n_s, B, 2)
     c, s = np.cos(rel[:, 2])[:, None], np.sin(rel[:, 2])[:, None]
     px = c * pts[..., 0] - s * pts[..., 1] + rel[:, None, 0]
     py = s * pts[..., 0] + c * pts[..., 1] + rel[:, None, 1]

@@ -106,7 +106,7 @@ def sample_path(waypoints, params: TrajectoryParams = TrajectoryParams()) -> Pat
         # and ends at the first and last waypoint and straight stretches stay exact.
         ker = np.ones(2 * half + 1) / (2 * half + 1)
         head = 2 * dense[0] - dense[half:0:-1]
-        tail = 2 * dense[-1] - dense[-2:-half - 2:-1]
+        tail = 2 * dense[-1] - dense[-2 : -half - 2 : -1]
         padded = np.concatenate([head, dense, tail])
         dense = np.stack([np.convolve(padded[:, i], ker, mode="valid") for i in range(2)], 1)
     xy = _resample(dense, params.scan_spacing)

@@ -20,25 +20,50 @@ __all__ = ["subset", "flood", "density_table"]
 def subset(data: StudyData, cands: Candidates, run_ids) -> tuple[StudyData, Candidates]:
     """The runs ``run_ids`` alone (submaps re-indexed), with their candidates."""
     run_ids = np.asarray(run_ids)
-    rb = RunBatch(*(np.asarray(getattr(data.runs_batch, f))[run_ids] for f in
-                    ("traj", "traj_t", "traj_mask", "window_end", "window_mask", "submap")))
+    rb = RunBatch(
+        *(
+            np.asarray(getattr(data.runs_batch, f))[run_ids]
+            for f in ("traj", "traj_t", "traj_mask", "window_end", "window_mask", "submap")
+        )
+    )
     rows = np.unique(rb.submap[rb.submap >= 0])
     remap = np.full(data.submaps.n, -1, np.int64)
     remap[rows] = np.arange(len(rows))
-    rb = RunBatch(rb.traj, rb.traj_t, rb.traj_mask, rb.window_end, rb.window_mask,
-                  np.where(rb.submap >= 0, remap[np.maximum(rb.submap, 0)], -1).astype(np.int32))
-    sub = SubmapBatch(*(np.asarray(getattr(data.submaps, f))[rows] for f in
-                        ("points", "origins", "mask", "X", "run", "window", "t", "n_dropped")))
+    rb = RunBatch(
+        rb.traj,
+        rb.traj_t,
+        rb.traj_mask,
+        rb.window_end,
+        rb.window_mask,
+        np.where(rb.submap >= 0, remap[np.maximum(rb.submap, 0)], -1).astype(np.int32),
+    )
+    sub = SubmapBatch(
+        *(
+            np.asarray(getattr(data.submaps, f))[rows]
+            for f in ("points", "origins", "mask", "X", "run", "window", "t", "n_dropped")
+        )
+    )
     new_run = {int(r): i for i, r in enumerate(run_ids)}
-    sub = SubmapBatch(sub.points, sub.origins, sub.mask, sub.X,
-                      np.asarray([new_run.get(int(r), -1) for r in sub.run], np.int32),
-                      sub.window, sub.t, sub.n_dropped)
-    truth = Truth(np.asarray(data.truth.traj)[run_ids], np.asarray(data.truth.anchor)[run_ids],
-                  np.asarray(data.truth.Y)[rows])
+    sub = SubmapBatch(
+        sub.points,
+        sub.origins,
+        sub.mask,
+        sub.X,
+        np.asarray([new_run.get(int(r), -1) for r in sub.run], np.int32),
+        sub.window,
+        sub.t,
+        sub.n_dropped,
+    )
+    truth = Truth(
+        np.asarray(data.truth.traj)[run_ids],
+        np.asarray(data.truth.anchor)[run_ids],
+        np.asarray(data.truth.Y)[rows],
+    )
     runs = data.runs.set_index("run").loc[run_ids].reset_index()
     runs["run"] = np.arange(len(run_ids))
-    c = Candidates(*(np.asarray(getattr(cands, f))[rows] for f in ("pose", "score", "mask",
-                                                                     "reason")))
+    c = Candidates(
+        *(np.asarray(getattr(cands, f))[rows] for f in ("pose", "score", "mask", "reason"))
+    )
     return StudyData(sub, rb, truth, runs, data.scene_of_submap[rows], data.scenes), c
 
 
@@ -61,7 +86,8 @@ def flood(c: Candidates, factor: int, seed: int = 0, jitter_xy=0.2, jitter_deg=1
         new_pose[i, :, :2] = pose[i, src, :2] + rng.normal(0, jitter_xy, (extra, 2))
         new_pose[i, :, 2] = pose[i, src, 2] + np.deg2rad(rng.normal(0, jitter_deg, extra))
         new_score[i] = score[i, src] - (0.01 + 0.05 * rng.random(extra)) * (
-            1.0 + abs(score[i, top]))
+            1.0 + abs(score[i, top])
+        )
         new_mask[i] = True
     return Candidates(
         pose=np.concatenate([pose, new_pose], 1),
@@ -71,8 +97,14 @@ def flood(c: Candidates, factor: int, seed: int = 0, jitter_xy=0.2, jitter_deg=1
     )
 
 
-def density_table(before: pd.DataFrame, after: pd.DataFrame, k_star: int, pool_before: int,
-                  pool_after: int, policies=("ours", "support")) -> pd.DataFrame:
+def density_table(
+    before: pd.DataFrame,
+    after: pd.DataFrame,
+    k_star: int,
+    pool_before: int,
+    pool_after: int,
+    policies=("ours", "support"),
+) -> pd.DataFrame:
     """Before/after rows at window ``k_star`` for each policy."""
     rows = []
     for label, df, pool in (("original", before, pool_before), ("flooded", after, pool_after)):
@@ -80,18 +112,20 @@ def density_table(before: pd.DataFrame, after: pd.DataFrame, k_star: int, pool_b
             g = df[(df["policy"] == pol)].sort_values("k")
             r = g[g["k"] == k_star].iloc[0]
             com = g[g["state"] == "COMMIT"]
-            rows.append({
-                "policy": pol,
-                "pool": label,
-                "candidates_to_k": pool,
-                "state_at_k": r["state"],
-                "first_commit_k": int(com["k"].iloc[0]) if len(com) else np.nan,
-                "room": r["room"],
-                "x": r["x"],
-                "y": r["y"],
-                "yaw_deg": r["yaw_deg"],
-                "B1": int(r["B1"]),
-                "margin": int(r["margin"]),
-                "err_xy": r["err_xy"],
-            })
+            rows.append(
+                {
+                    "policy": pol,
+                    "pool": label,
+                    "candidates_to_k": pool,
+                    "state_at_k": r["state"],
+                    "first_commit_k": int(com["k"].iloc[0]) if len(com) else np.nan,
+                    "room": r["room"],
+                    "x": r["x"],
+                    "y": r["y"],
+                    "yaw_deg": r["yaw_deg"],
+                    "B1": int(r["B1"]),
+                    "margin": int(r["margin"]),
+                    "err_xy": r["err_xy"],
+                }
+            )
     return pd.DataFrame(rows)

@@ -15,18 +15,42 @@ __all__ = ["PAPER_POLICY", "PAPER_SELECTIVE", "comparison"]
 
 # Table II: (trajectory, d_s) -> policy -> (room, planar error m, window k or None, correct)
 PAPER_POLICY = {
-    ("T1", 5.0): {"single_shot": ("209", 0.24, 1, True), "support": ("209", 1.25, None, False),
-                  "confidence": ("209", 0.18, None, True), "ours": ("209", 0.36, 4, True)},
-    ("T1", 6.0): {"single_shot": ("208", 14.7, 1, False), "support": ("208", 14.7, None, False),
-                  "confidence": ("208", 8.0, None, False), "ours": ("209", 0.20, 8, True)},
-    ("T1", 7.0): {"single_shot": ("208", 14.9, 1, False), "support": ("209", 1.28, None, False),
-                  "confidence": ("209", 0.13, None, True), "ours": ("209", 0.27, 6, True)},
-    ("T2", 5.0): {"single_shot": ("207", 22.6, 1, False), "support": ("209", 7.36, None, False),
-                  "confidence": ("208", 21.6, None, False), "ours": ("209", 0.02, 6, True)},
-    ("T2", 6.0): {"single_shot": ("208", 14.5, 1, False), "support": ("208", 5.60, None, False),
-                  "confidence": ("208", 14.5, None, False), "ours": ("209", 0.28, 8, True)},
-    ("T2", 7.0): {"single_shot": ("209", 0.15, 1, True), "support": ("207", 25.6, None, False),
-                  "confidence": ("207", 25.6, None, False), "ours": ("209", 0.13, 3, True)},
+    ("T1", 5.0): {
+        "single_shot": ("209", 0.24, 1, True),
+        "support": ("209", 1.25, None, False),
+        "confidence": ("209", 0.18, None, True),
+        "ours": ("209", 0.36, 4, True),
+    },
+    ("T1", 6.0): {
+        "single_shot": ("208", 14.7, 1, False),
+        "support": ("208", 14.7, None, False),
+        "confidence": ("208", 8.0, None, False),
+        "ours": ("209", 0.20, 8, True),
+    },
+    ("T1", 7.0): {
+        "single_shot": ("208", 14.9, 1, False),
+        "support": ("209", 1.28, None, False),
+        "confidence": ("209", 0.13, None, True),
+        "ours": ("209", 0.27, 6, True),
+    },
+    ("T2", 5.0): {
+        "single_shot": ("207", 22.6, 1, False),
+        "support": ("209", 7.36, None, False),
+        "confidence": ("208", 21.6, None, False),
+        "ours": ("209", 0.02, 6, True),
+    },
+    ("T2", 6.0): {
+        "single_shot": ("208", 14.5, 1, False),
+        "support": ("208", 5.60, None, False),
+        "confidence": ("208", 14.5, None, False),
+        "ours": ("209", 0.28, 8, True),
+    },
+    ("T2", 7.0): {
+        "single_shot": ("209", 0.15, 1, True),
+        "support": ("207", 25.6, None, False),
+        "confidence": ("207", 25.6, None, False),
+        "ours": ("209", 0.13, 3, True),
+    },
 }
 # Table III.
 PAPER_SELECTIVE = {
@@ -69,37 +93,51 @@ def comparison(firsts_main: pd.DataFrame, firsts_all: pd.DataFrame, extra: dict)
     rows = []
     for (traj, ds), pols in PAPER_POLICY.items():
         for pol, v in pols.items():
-            m = firsts_main[(firsts_main["trajectory"] == traj) & (firsts_main["d_s"] == ds)
-                            & (firsts_main["policy"] == pol)]
-            a = firsts_all[(firsts_all["trajectory"] == traj) & (firsts_all["d_s"] == ds)
-                           & (firsts_all["policy"] == pol)]
-            rows.append({
-                "section": "Table II",
-                "quantity": f"{traj} d_s={ds:g} {pol}",
-                "paper": _paper_cell(v),
-                "ours (main seed)": cell(m.iloc[0]) if len(m) else "-",
-                "ours (all seeds, correct)": f"{int(a['correct'].sum())}/{len(a)}" if len(a) else "-",
-            })
+            m = firsts_main[
+                (firsts_main["trajectory"] == traj)
+                & (firsts_main["d_s"] == ds)
+                & (firsts_main["policy"] == pol)
+            ]
+            a = firsts_all[
+                (firsts_all["trajectory"] == traj)
+                & (firsts_all["d_s"] == ds)
+                & (firsts_all["policy"] == pol)
+            ]
+            rows.append(
+                {
+                    "section": "Table II",
+                    "quantity": f"{traj} d_s={ds:g} {pol}",
+                    "paper": _paper_cell(v),
+                    "ours (main seed)": cell(m.iloc[0]) if len(m) else "-",
+                    "ours (all seeds, correct)": f"{int(a['correct'].sum())}/{len(a)}"
+                    if len(a)
+                    else "-",
+                }
+            )
     for pol, v in PAPER_SELECTIVE.items():
         a = firsts_all[firsts_all["policy"] == pol]
         m = firsts_main[firsts_main["policy"] == pol]
         mk = float(np.nanmean(a["k"])) if a["committed"].any() else float("nan")
-        rows.append({
-            "section": "Table III",
-            "quantity": f"{pol}: correct / false / mean k",
-            "paper": f"{v['correct']} / {v['false']} / {v['mean_k']:.1f}",
-            "ours (main seed)": f"{int(m['correct'].sum())}/{len(m)} / "
-                                f"{int(m['false_commit'].sum())}/{len(m)} / "
-                                f"{np.nanmean(m['k']) if m['committed'].any() else float('nan'):.1f}",
-            "ours (all seeds, correct)": f"{int(a['correct'].sum())}/{len(a)} / "
-                                         f"{int(a['false_commit'].sum())}/{len(a)} / {mk:.1f}",
-        })
+        rows.append(
+            {
+                "section": "Table III",
+                "quantity": f"{pol}: correct / false / mean k",
+                "paper": f"{v['correct']} / {v['false']} / {v['mean_k']:.1f}",
+                "ours (main seed)": f"{int(m['correct'].sum())}/{len(m)} / "
+                f"{int(m['false_commit'].sum())}/{len(m)} / "
+                f"{np.nanmean(m['k']) if m['committed'].any() else float('nan'):.1f}",
+                "ours (all seeds, correct)": f"{int(a['correct'].sum())}/{len(a)} / "
+                f"{int(a['false_commit'].sum())}/{len(a)} / {mk:.1f}",
+            }
+        )
     for section, quantity, paper in PAPER_TEXT:
-        rows.append({
-            "section": section,
-            "quantity": quantity,
-            "paper": paper,
-            "ours (main seed)": extra.get((section, quantity), "-"),
-            "ours (all seeds, correct)": extra.get((section, quantity, "all"), "-"),
-        })
+        rows.append(
+            {
+                "section": section,
+                "quantity": quantity,
+                "paper": paper,
+                "ours (main seed)": extra.get((section, quantity), "-"),
+                "ours (all seeds, correct)": extra.get((section, quantity, "all"), "-"),
+            }
+        )
     return pd.DataFrame(rows)

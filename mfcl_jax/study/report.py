@@ -56,8 +56,10 @@ def congruence_table(scored: pd.DataFrame, strict: pd.DataFrame, strict_iou: flo
     from mfcl_jax.decision.gate import MIN_CONGRUENT_IOU
 
     rows = []
-    for label, df in ((f"IoU >= {MIN_CONGRUENT_IOU:g} (default)", scored),
-                      (f"IoU >= {strict_iou:g} (strict)", strict)):
+    for label, df in (
+        (f"IoU >= {MIN_CONGRUENT_IOU:g} (default)", scored),
+        (f"IoU >= {strict_iou:g} (strict)", strict),
+    ):
         f = firsts_of(df[df["policy"] == "ours"])
         for scene, g in f.groupby("scene"):
             m = tables.selective_metrics(g, policies=("ours",)).iloc[0].to_dict()
@@ -71,8 +73,13 @@ def _fmt_commit(r) -> str:
     return f"k={int(r['k'])}, {r['err_xy']:.2f} m ({r['err_xy'] / BAY_PITCH:.2f} tau)"
 
 
-def build_tables(scored: pd.DataFrame, out, main_seed: int, density: pd.DataFrame | None = None,
-                 timings: pd.DataFrame | None = None) -> dict[str, pd.DataFrame]:
+def build_tables(
+    scored: pd.DataFrame,
+    out,
+    main_seed: int,
+    density: pd.DataFrame | None = None,
+    timings: pd.DataFrame | None = None,
+) -> dict[str, pd.DataFrame]:
     """Builds and writes every table; returns them by name."""
     out = Path(out)
     firsts = firsts_of(scored)
@@ -89,14 +96,14 @@ def build_tables(scored: pd.DataFrame, out, main_seed: int, density: pd.DataFram
         t["symmetric_sim"] = symmetric_summary(firsts, scored)
         ds_main = 6.0 if 6.0 in set(scored["d_s"]) else float(scored["d_s"].min())
         t["symmetric_windows"] = tables.symmetric_sim(
-            scored[scored["scene"] == "symmetric_bays"], BAY_PITCH, main_seed, ds_main)
+            scored[scored["scene"] == "symmetric_bays"], BAY_PITCH, main_seed, ds_main
+        )
         t["symmetric_metrics"] = tables.selective_metrics(sym, policies=("ours", "no_probe"))
     if density is not None:
         t["density_immunity"] = density
     extra = _extras(firsts, t, main_seed)
     if len(three):
-        t["paper_comparison"] = paper.comparison(
-            three[three["seed"] == main_seed], three, extra)
+        t["paper_comparison"] = paper.comparison(three[three["seed"] == main_seed], three, extra)
     if timings is not None:
         t["timings"] = timings
     firsts.to_csv(out / "per_seed.csv", index=False, float_format="%.4g") if out.exists() else None
@@ -109,8 +116,11 @@ def _extras(firsts, t, main_seed) -> dict:
     """Our values for the paper's text-only claims."""
     ex = {}
     three = firsts[firsts["scene"] == "three_rooms"]
-    for pol, key in (("gate_only", "gate_only correct"), ("consensus_only", "consensus_only correct"),
-                     ("ours", "full (ours) correct")):
+    for pol, key in (
+        ("gate_only", "gate_only correct"),
+        ("consensus_only", "consensus_only correct"),
+        ("ours", "full (ours) correct"),
+    ):
         m = three[(three["policy"] == pol) & (three["seed"] == main_seed)]
         a = three[three["policy"] == pol]
         ex[("ablation", key)] = f"{int(m['correct'].sum())}/{len(m)}"
@@ -120,50 +130,66 @@ def _extras(firsts, t, main_seed) -> dict:
         m = three[(three["policy"] == pol) & (three["seed"] == main_seed)]
         a = three[three["policy"] == pol]
         parts.append(f"{int(m['correct'].sum())}/{len(m)} ({int(m['false_commit'].sum())} false)")
-        parts_all.append(f"{int(a['correct'].sum())}/{len(a)} ({int(a['false_commit'].sum())} false)")
+        parts_all.append(
+            f"{int(a['correct'].sum())}/{len(a)} ({int(a['false_commit'].sum())} false)"
+        )
     ex[("sensitivity", "(2,1) / (3,2) / (4,2) correct")] = " / ".join(parts)
     ex[("sensitivity", "(2,1) / (3,2) / (4,2) correct", "all")] = " / ".join(parts_all)
     ok = three[(three["policy"] == "ours") & three["correct"]]
     if len(ok):
         m = ok[ok["seed"] == main_seed]
         if len(m):
-            ex[("real", "ours commit errors / yaw")] = (
-                f"{m['err_xy'].min():.2f}-{m['err_xy'].max():.2f} m, < {m['err_yaw_deg'].max():.2f} deg")
-        ex[("real", "ours commit errors / yaw", "all")] = (
-            f"{ok['err_xy'].min():.2f}-{ok['err_xy'].max():.2f} m, < {ok['err_yaw_deg'].max():.2f} deg")
+            ex[("real", "ours commit errors / yaw")] = _err_range(m)
+        ex[("real", "ours commit errors / yaw", "all")] = _err_range(ok)
     if "density_immunity" in t:
         d = t["density_immunity"]
         ours = d[d["policy"] == "ours"]
         sup = d[d["policy"] == "support"]
-        same = all(ours.iloc[0][c] == ours.iloc[1][c] or (pd.isna(ours.iloc[0][c]) and pd.isna(ours.iloc[1][c]))
-                   for c in ("state_at_k", "room", "x", "y", "yaw_deg", "B1", "margin", "first_commit_k"))
+        same = all(
+            ours.iloc[0][c] == ours.iloc[1][c]
+            or (pd.isna(ours.iloc[0][c]) and pd.isna(ours.iloc[1][c]))
+            for c in ("state_at_k", "room", "x", "y", "yaw_deg", "B1", "margin", "first_commit_k")
+        )
+        pools = f"{int(ours.iloc[0]['candidates_to_k'])} -> {int(ours.iloc[1]['candidates_to_k'])}"
         ex[("density", "pool growth at commit window")] = (
-            f"{int(ours.iloc[0]['candidates_to_k'])} -> {int(ours.iloc[1]['candidates_to_k'])}; ours "
-            f"{'unchanged' if same else 'CHANGED'}; support {sup.iloc[0]['state_at_k']}/"
-            f"{sup.iloc[0]['room']} -> {sup.iloc[1]['state_at_k']}/{sup.iloc[1]['room']}")
+            f"{pools}; ours {'unchanged' if same else 'CHANGED'}; "
+            f"support {sup.iloc[0]['state_at_k']}/"
+            f"{sup.iloc[0]['room']} -> {sup.iloc[1]['state_at_k']}/{sup.iloc[1]['room']}"
+        )
     if "symmetric_sim" in t:
         s = t["symmetric_sim"]
         ds_main = 6.0 if 6.0 in set(s["d_s"]) else float(s["d_s"].min())
-        sm = firsts[(firsts["scene"] == "symmetric_bays") & (firsts["seed"] == main_seed)
-                    & (firsts["d_s"] == ds_main)]
+        sm = firsts[
+            (firsts["scene"] == "symmetric_bays")
+            & (firsts["seed"] == main_seed)
+            & (firsts["d_s"] == ds_main)
+        ]
         for i, traj in enumerate(sorted(sm["trajectory"].unique())):
             which = "main start" if i == 0 else "second start"
             o = sm[(sm["trajectory"] == traj) & (sm["policy"] == "ours")].iloc[0]
             n = sm[(sm["trajectory"] == traj) & (sm["policy"] == "no_probe")].iloc[0]
             ex[("symmetric", f"{which}: ours commit window, error")] = (
-                f"{_fmt_commit(o)} of {int(o['n_windows'])} windows")
+                f"{_fmt_commit(o)} of {int(o['n_windows'])} windows"
+            )
             ex[("symmetric", f"{which}: no-probe early commit")] = _fmt_commit(n)
         sa = s.dropna(subset=["tau_max_abs_err"])
         if len(sa):
-            ex[("symmetric", "tau error vs 7.30 m")] = (
-                f"max {sa['tau_max_abs_err'].max():.2f} m, mean abs {sa['tau_mean_abs_err'].mean():.2f} m")
+            worst, mean = sa["tau_max_abs_err"].max(), sa["tau_mean_abs_err"].mean()
+            ex[("symmetric", "tau error vs 7.30 m")] = f"max {worst:.2f} m, mean abs {mean:.2f} m"
         allo = firsts[(firsts["scene"] == "symmetric_bays") & (firsts["policy"] == "ours")]
         alln = firsts[(firsts["scene"] == "symmetric_bays") & (firsts["policy"] == "no_probe")]
-        ex[("symmetric", "main start: ours commit window, error", "all")] = (
-            f"correct {int(allo['correct'].sum())}/{len(allo)}, false {int(allo['false_commit'].sum())}")
-        ex[("symmetric", "main start: no-probe early commit", "all")] = (
-            f"correct {int(alln['correct'].sum())}/{len(alln)}, false {int(alln['false_commit'].sum())}")
+        ex[("symmetric", "main start: ours commit window, error", "all")] = _tally(allo)
+        ex[("symmetric", "main start: no-probe early commit", "all")] = _tally(alln)
     return ex
+
+
+def _err_range(f: pd.DataFrame) -> str:
+    lo, hi, yaw = f["err_xy"].min(), f["err_xy"].max(), f["err_yaw_deg"].max()
+    return f"{lo:.2f}-{hi:.2f} m, < {yaw:.2f} deg"
+
+
+def _tally(f: pd.DataFrame) -> str:
+    return f"correct {int(f['correct'].sum())}/{len(f)}, false {int(f['false_commit'].sum())}"
 
 
 def build_figures(scored, data, cands, out, main_seed: int) -> list[Path]:
@@ -174,8 +200,9 @@ def build_figures(scored, data, cands, out, main_seed: int) -> list[Path]:
     sym = scored[(scored["scene"] == "symmetric_bays") & (scored["seed"] == main_seed)]
     if len(sym):
         ds = 6.0 if 6.0 in set(sym["d_s"]) else float(sym["d_s"].min())
-        fig = figures.state_timeline(sym[sym["d_s"] == ds], BAY_PITCH,
-                                     f"symmetric_bays, d_s={ds:g} m, seed {main_seed}")
+        fig = figures.state_timeline(
+            sym[sym["d_s"] == ds], BAY_PITCH, f"symmetric_bays, d_s={ds:g} m, seed {main_seed}"
+        )
         paths.append(figures.save(fig, out / "symmetric_states.png"))
     three = scored[(scored["scene"] == "three_rooms") & (scored["seed"] == main_seed)]
     if len(three):
@@ -202,24 +229,35 @@ def _clouds(scored, firsts, data, out, ds):
         clouds = []
         truth_xy = None
         for pol, colour in (("single_shot", "tab:red"), ("ours", "tab:green")):
-            g = scored[(scored["trajectory"] == traj) & (scored["policy"] == pol)
-                       & (scored["state"] == "COMMIT")].sort_values("k")
+            g = scored[
+                (scored["trajectory"] == traj)
+                & (scored["policy"] == pol)
+                & (scored["state"] == "COMMIT")
+            ].sort_values("k")
             if not len(g):
                 clouds.append((f"{pol}: no commit", None, colour, math.nan))
                 continue
             row = g.iloc[0]
             r, k, sub, end = _row_of(data, row)
             anchor = np.array([row["x"], row["y"], np.deg2rad(row["yaw_deg"])])
-            pts = figures.place_submap(np.asarray(data.submaps.points)[sub],
-                                       np.asarray(data.submaps.mask)[sub], anchor,
-                                       np.asarray(data.submaps.X)[sub])
+            pts = figures.place_submap(
+                np.asarray(data.submaps.points)[sub],
+                np.asarray(data.submaps.mask)[sub],
+                anchor,
+                np.asarray(data.submaps.X)[sub],
+            )
             label = f"{pol} k={k} room {row['room']}"
             clouds.append((label, pts, colour, row["err_xy"]))
             if pol == "ours" or truth_xy is None:
                 truth_xy = np.asarray(data.truth.traj)[r, end, :2]
-        panels.append({"title": f"three_rooms {traj}, d_s={ds:g} m: submap at each policy's "
-                                f"commit, placed by its anchor", "clouds": clouds,
-                       "truth_xy": truth_xy if truth_xy is not None else (np.nan, np.nan)})
+        panels.append(
+            {
+                "title": f"three_rooms {traj}, d_s={ds:g} m: submap at each policy's "
+                f"commit, placed by its anchor",
+                "clouds": clouds,
+                "truth_xy": truth_xy if truth_xy is not None else (np.nan, np.nan),
+            }
+        )
     fig = figures.commit_clouds(panels, scene.floorplan)
     return figures.save(fig, out / "commit_clouds.png")
 
@@ -239,8 +277,17 @@ def _anchor_space(scored, data, cands, out, ds):
     has = mask.any(1)
     top1 = H[np.arange(len(subs)), top][has]
     com = g[g["state"] == "COMMIT"]
-    t_star = (np.array([com["x"].iloc[0], com["y"].iloc[0], np.deg2rad(com["yaw_deg"].iloc[0])])
-              if len(com) else None)
-    fig = figures.anchor_space(H[mask], score[mask], top1, np.asarray(data.truth.anchor)[r],
-                               t_star, f"three_rooms {traj}, d_s={ds:g} m: anchors H = Y X^-1")
+    t_star = (
+        np.array([com["x"].iloc[0], com["y"].iloc[0], np.deg2rad(com["yaw_deg"].iloc[0])])
+        if len(com)
+        else None
+    )
+    fig = figures.anchor_space(
+        H[mask],
+        score[mask],
+        top1,
+        np.asarray(data.truth.anchor)[r],
+        t_star,
+        f"three_rooms {traj}, d_s={ds:g} m: anchors H = Y X^-1",
+    )
     return figures.save(fig, out / "anchor_space.png")

@@ -22,8 +22,12 @@ STRICT_IOU = 0.98  # "exact copy up to 2 % modelling noise"
 def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
     """The density-immunity table for ``cfg.density_run`` (``traj@d_s``) at the main seed."""
     traj, ds = cfg.density_run.split("@")
-    sel = data.runs[(data.runs["scene"] == "three_rooms") & (data.runs["trajectory"] == traj)
-                    & (data.runs["d_s"] == float(ds)) & (data.runs["seed"] == cfg.main_seed)]
+    sel = data.runs[
+        (data.runs["scene"] == "three_rooms")
+        & (data.runs["trajectory"] == traj)
+        & (data.runs["d_s"] == float(ds))
+        & (data.runs["seed"] == cfg.main_seed)
+    ]
     if not len(sel):
         return None
     run = int(sel["run"].iloc[0])
@@ -40,8 +44,9 @@ def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
     frames = []
     pools = []
     for label, c in (("original", sub_c), ("flooded", flooded)):
-        w = pipeline.decide(sub_data, c, cfg.decision, tm, label=f"density {label}",
-                            progress=cfg.progress)
+        w = pipeline.decide(
+            sub_data, c, cfg.decision, tm, label=f"density {label}", progress=cfg.progress
+        )
         frames.append(pipeline.score(sub_data, w))
         rows = np.asarray(rb.submap)[0, :k_star]
         pools.append(int(np.asarray(c.mask)[rows[rows >= 0]].sum()))
@@ -66,8 +71,15 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     dens = _density(data, cands, scored, cfg, tm) if "three_rooms" in cfg.scenes else None
     # Ablation of the congruence threshold: the paper's exact congruence (near-copies are not
     # a lattice) against our default, on the same candidates.
-    strict = pipeline.decide(data, cands, cfg.decision, tm, label="decision strict-congruence",
-                             progress=cfg.progress, min_iou=STRICT_IOU)
+    strict = pipeline.decide(
+        data,
+        cands,
+        cfg.decision,
+        tm,
+        label="decision strict-congruence",
+        progress=cfg.progress,
+        min_iou=STRICT_IOU,
+    )
     strict = pipeline.score(data, strict[strict["policy"] == "ours"])
     congruence = report.congruence_table(scored, strict, STRICT_IOU)
     t0 = time.perf_counter()
@@ -85,9 +97,19 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     tabs = report.build_tables(scored, out, cfg.main_seed, dens, timings)
     tables.write_table(congruence, out, "congruence")
     tabs["congruence"] = congruence
-    (out / "sweep_config.json").write_text(json.dumps(
-        {"scenes": cfg.scenes, "d_s": cfg.d_s, "seeds": seeds, "main_seed": cfg.main_seed,
-         "density_run": cfg.density_run, "density_factor": cfg.density_factor}, indent=1))
+    (out / "sweep_config.json").write_text(
+        json.dumps(
+            {
+                "scenes": cfg.scenes,
+                "d_s": cfg.d_s,
+                "seeds": seeds,
+                "main_seed": cfg.main_seed,
+                "density_run": cfg.density_run,
+                "density_factor": cfg.density_factor,
+            },
+            indent=1,
+        )
+    )
     return tabs
 
 

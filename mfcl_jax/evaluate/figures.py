@@ -59,12 +59,14 @@ def state_timeline(scored: pd.DataFrame, pitch: float, title: str):
                 k0 = com["k"].iloc[0]
                 err = com["err_xy"].iloc[0]
                 ax.text(
-                    k0,
-                    row + 0.42,
-                    f"commit k={k0}\n{err:.2f} m ({err / pitch:.2f} bays)",
+                    k0 - 0.4,
+                    row,
+                    f"commit k={k0}: {err:.2f} m ({err / pitch:.2f} bays)",
                     fontsize=7,
                     ha="left",
-                    va="bottom",
+                    va="center",
+                    color="white",
+                    fontweight="bold",
                 )
         ax2.axhline(pitch, color="tab:blue", lw=0.8, ls=":", label=f"pitch {pitch:.2f} m")
         ax2.set_ylim(0, pitch * 2.2)
@@ -74,8 +76,10 @@ def state_timeline(scored: pd.DataFrame, pitch: float, title: str):
         ax.set_xlabel("window k")
         ax.set_title(f"{title}: {traj}", fontsize=9)
         handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in STATE_COLOURS.values()]
-        ax.legend(handles, list(STATE_COLOURS), loc="upper left", fontsize=7, ncol=3)
-        ax2.legend(loc="lower right", fontsize=7)
+        ax.legend(
+            handles, list(STATE_COLOURS), loc="upper left", bbox_to_anchor=(1.08, 1.0), fontsize=7
+        )
+        ax2.legend(loc="lower left", bbox_to_anchor=(1.08, 0.0), fontsize=7)
     fig.tight_layout()
     return fig
 
@@ -100,7 +104,10 @@ def commit_clouds(panels, floorplan):
         tx, ty = panel["truth_xy"]
         ax.plot(tx, ty, marker="P", color="k", ms=9, ls="none", label="true position")
         ax.set_title(panel["title"], fontsize=9)
-        ax.legend(loc="upper right", fontsize=7, markerscale=8)
+        leg = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+        for h in leg.legend_handles:
+            if hasattr(h, "set_sizes"):
+                h.set_sizes([25.0])
         ax.set_aspect("equal")
     fig.tight_layout()
     return fig

@@ -8,14 +8,13 @@ Every builder takes ``firsts`` (one row per scene x trajectory x d_s x seed x po
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from mfcl_jax.evaluate.metrics import wilson
+from mfcl_jax.io.atomic import atomic_write
 
 __all__ = [
     "FORCED",
@@ -150,26 +149,13 @@ def symmetric_sim(scored: pd.DataFrame, pitch: float, seed: int, d_s: float) -> 
     return pd.DataFrame(rows)
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def write_table(df: pd.DataFrame, out_dir, name: str, latex: bool = False) -> list[Path]:
     """Writes ``name.csv`` and ``name.md`` (and ``name.tex``) atomically; returns the paths."""
     out_dir = Path(out_dir)
     paths = [out_dir / f"{name}.csv", out_dir / f"{name}.md"]
-    _atomic_write(paths[0], df.to_csv(index=False, float_format="%.4g"))
-    _atomic_write(paths[1], df.to_markdown(index=False, floatfmt=".3g") + "\n")
+    atomic_write(paths[0], df.to_csv(index=False, float_format="%.4g"))
+    atomic_write(paths[1], df.to_markdown(index=False, floatfmt=".3g") + "\n")
     if latex:
         paths.append(out_dir / f"{name}.tex")
-        _atomic_write(paths[2], df.to_latex(index=False, float_format="%.3g", escape=True))
+        atomic_write(paths[2], df.to_latex(index=False, float_format="%.3g", escape=True))
     return paths

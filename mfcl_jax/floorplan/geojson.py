@@ -8,14 +8,13 @@ A ``FeatureCollection`` in metres; each feature's ``properties.kind`` is
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from shapely.geometry import Polygon
 
 from mfcl_jax.floorplan.model import DEFAULT_WALL_THICKNESS, Door, Floorplan, FloorplanError, Room
+from mfcl_jax.io.atomic import atomic_write
 
 __all__ = ["load_geojson", "save_geojson", "floorplan_from_geojson", "floorplan_to_geojson"]
 
@@ -201,15 +200,5 @@ def floorplan_to_geojson(fp: Floorplan) -> dict:
 
 def save_geojson(fp: Floorplan, path) -> Path:
     """Writes a floor plan atomically (a temporary file renamed into place)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(floorplan_to_geojson(fp), fh, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    path = atomic_write(path, json.dumps(floorplan_to_geojson(fp), indent=1))
     return path

@@ -6,12 +6,11 @@ Points with a non-finite x or y are dropped and counted, never silently repaired
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from mfcl_jax.io.atomic import atomic_write
 from mfcl_jax.io.errors import DataError
 
 __all__ = ["read_pcd", "write_pcd"]
@@ -132,14 +131,5 @@ def write_pcd(path, points, binary: bool = True) -> Path:
         if binary
         else "".join(f"{x:.7g} {y:.7g} {z:.7g}\n" for x, y, z in pts).encode()
     )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(head.encode() + body)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write(path, head.encode() + body)
     return path

@@ -29,7 +29,16 @@ from mfcl_jax.frontend import registry
 from mfcl_jax.frontend.features import floorplan_corners
 from mfcl_jax.sim import SimParams, simulate
 
-__all__ = ["Timings", "StudyData", "prepare", "register_all", "decide", "score", "CHUNK"]
+__all__ = [
+    "Timings",
+    "StudyData",
+    "prepare",
+    "register_all",
+    "compile_and_run",
+    "decide",
+    "score",
+    "CHUNK",
+]
 
 CHUNK = 32  # submaps per front-end chunk (lax.map): bounds memory, not a Python loop
 
@@ -153,21 +162,31 @@ def register_all(data: StudyData, params, timings: Timings, progress=True) -> Ca
     sub = pad_submaps(sub, n=n_pad)
     b = np.zeros(n_pad, np.int32)
     b[:n] = data.scene_of_submap
-    fn = _chunked_register(params)
     args = (sub.points, sub.origins, sub.mask, b, feats)
+    cands, tr = compile_and_run(
+        _chunked_register(params), args, timings, "front-end", f"{n} submaps", progress
+    )
+    per = 1e3 * tr / max(n, 1)
+    timings.rows[-1]["note"] = f"{n} submaps, {per:.1f} ms/submap"
+    log(f"[front-end] {per:.1f} ms/submap", progress)
+    return jax.tree.map(lambda a: np.asarray(a)[:n], cands)
+
+
+def compile_and_run(fn, args, timings: Timings, label: str, note: str, progress=True):
+    """Compiles ``fn`` ahead of time for ``args``, runs it once, and records both times.
+
+    Returns:
+        ``(result, run seconds)``.
+    """
     t0 = time.perf_counter()
     compiled = fn.lower(*args).compile()
     tc = time.perf_counter() - t0
     t0 = time.perf_counter()
-    cands = jax.block_until_ready(compiled(*args))
+    out = jax.block_until_ready(compiled(*args))
     tr = time.perf_counter() - t0
-    timings.add("front-end", tc, tr, f"{n} submaps, {1e3 * tr / max(n, 1):.1f} ms/submap")
-    log(
-        f"[front-end] {n} submaps: compile {tc:.1f} s, run {tr:.1f} s "
-        f"({1e3 * tr / max(n, 1):.1f} ms/submap)",
-        progress,
-    )
-    return jax.tree.map(lambda a: np.asarray(a)[:n], cands)
+    timings.add(label, tc, tr, note)
+    log(f"[{label}] {note}: compile {tc:.1f} s, run {tr:.1f} s", progress)
+    return out, tr
 
 
 def run_maps(data: StudyData, min_iou: float | None = None) -> GateMaps:
@@ -198,18 +217,8 @@ def decide(
     runs_batch = data.runs_batch
     maps = run_maps(data, min_iou)
     args, n_bad = batch_inputs(cands, data.submaps, runs_batch, maps, params)
-    t0 = time.perf_counter()
-    compiled = evaluate.lower(*args).compile()
-    tc = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    dec = jax.block_until_ready(compiled(*args))
-    tr = time.perf_counter() - t0
-    timings.add(label, tc, tr, f"{runs_batch.n_runs} runs x {runs_batch.n_windows} windows")
-    log(
-        f"[{label}] {runs_batch.n_runs} runs x {runs_batch.n_windows} windows: compile "
-        f"{tc:.1f} s, run {tr:.1f} s",
-        progress,
-    )
+    note = f"{runs_batch.n_runs} runs x {runs_batch.n_windows} windows"
+    dec, _ = compile_and_run(evaluate, args, timings, label, note, progress)
     df = to_frame(dec, window_mask=runs_batch.window_mask, n_bad=n_bad)
     df = df[df["set"] == 0].drop(columns="set")
     meta = data.runs[["run", "scene", "trajectory", "d_s", "seed"]]

@@ -5,10 +5,10 @@ A block ``<!-- BEGIN:name -->`` ... ``<!-- END:name -->`` is replaced by ``resul
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from pathlib import Path
+
+from mfcl_jax.io.atomic import atomic_write
 
 __all__ = ["update_readme"]
 
@@ -32,8 +32,5 @@ def update_readme(readme="README.md", results="results") -> list[str]:
 
     new = _BLOCK.sub(fill, text)
     if new != text:
-        fd, tmp = tempfile.mkstemp(dir=readme.parent, prefix=".README.", suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(new)
-        os.replace(tmp, readme)
+        atomic_write(readme, new)
     return done

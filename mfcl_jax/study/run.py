@@ -86,7 +86,12 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     if write_raw:
         raw = out / "raw"
         raw.mkdir(exist_ok=True)
-        scored.drop(columns=["yaw"]).to_csv(raw / RAW, index=False, float_format="%.5g")
+        scored.drop(columns=["yaw"]).to_csv(
+            raw / RAW,
+            index=False,
+            float_format="%.5g",
+            compression={"method": "gzip", "mtime": 0},  # byte-identical reruns
+        )
         if dens is not None:
             dens.to_csv(raw / "density_immunity.csv", index=False)
     paths = report.build_figures(scored, data, cands, out, cfg.main_seed) if cfg.figures else []

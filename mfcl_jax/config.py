@@ -63,7 +63,7 @@ class StudyConfig:
 class _SweepSchema:
     """Top-level schema; ``d_s`` accepts a scalar (a multirun job) or a list."""
 
-    scenes: list[str] = MISSING
+    scenes: Any = MISSING
     d_s: Any = MISSING
     seeds: int = 10
     seed0: int = 0

@@ -137,3 +137,17 @@ def test_density_immunity(study):
     assert ours.loc["flooded", "candidates_to_k"] > 3 * ours.loc["original", "candidates_to_k"]
     for c in ("state_at_k", "room", "x", "y", "yaw_deg", "B1", "margin", "first_commit_k"):
         assert ours.loc["original", c] == ours.loc["flooded", c], c
+
+
+def test_config_accepts_scalars_and_rejects_typos():
+    register_configs()
+    with initialize(config_path="../conf", version_base="1.3"):
+        cfg = compose("sweep", overrides=["scenes=three_rooms", "d_s=6", "decision.b_min=4"])
+        study = to_study(cfg)
+        assert study.scenes == ["three_rooms"] and study.d_s == [6.0]
+        assert study.decision.b_min == 4.0
+        assert abs(study.decision.delta_theta - np.deg2rad(18.0)) < 1e-9
+        with pytest.raises(Exception, match="bmin"):
+            compose("sweep", overrides=["decision.bmin=4"])
+        with pytest.raises(ValueError, match="d_s must be positive"):
+            to_study(compose("sweep", overrides=["d_s=-1"]))

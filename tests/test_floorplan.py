@@ -196,3 +196,24 @@ def test_geojson_schema_matches_architecture():
     assert kinds == {"wall", "room", "door"}
     door = next(f for f in data["features"] if f["properties"]["kind"] == "door")
     assert door["properties"]["rooms"] == ["a", "b"]
+
+
+def test_round_trip_room_with_hole_and_polygon_wall(tmp_path):
+    """Rings of different lengths (a courtyard hole) must load; IFC exports produce them."""
+    from shapely.geometry import Polygon
+
+    outer = [(0.1, 0.1), (9.9, 0.1), (9.9, 7.9), (0.1, 7.9)]
+    hole = [(4.0, 3.0), (5.0, 3.0), (5.0, 4.0)]
+    wall_poly = Polygon(
+        [(-0.5, -0.5), (10.5, -0.5), (10.5, 8.5), (-0.5, 8.5)],
+        [[(-0.1, -0.1), (10.1, -0.1), (10.1, 8.1), (-0.1, 8.1)]],
+    )
+    fp = Floorplan(
+        walls=np.zeros((0, 2, 2)),
+        thickness=0.2,
+        rooms=(Room("c", Polygon(outer, [hole])),),
+        wall_polygons=(wall_poly,),
+    )
+    fp2 = load_geojson(save_geojson(fp, tmp_path / "hole.geojson"))
+    assert abs(fp2.room("c").polygon.area - fp.room("c").polygon.area) < 1e-9
+    assert len(fp2.room("c").polygon.interiors) == 1

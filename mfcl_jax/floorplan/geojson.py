@@ -30,15 +30,27 @@ def _coords(src, i, feat, shape_desc):
 
 
 def _ring(src, i, what, ring) -> np.ndarray:
-    ring = np.asarray(ring, dtype=float)
+    try:
+        ring = np.asarray(ring, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise FloorplanError(f"{src}: feature #{i} ({what}): bad polygon ring ({e})") from None
     if ring.ndim != 2 or ring.shape[1] < 2 or len(ring) < 4:
         raise FloorplanError(f"{src}: feature #{i} ({what}): a polygon ring needs >= 4 positions")
+    if not np.all(np.isfinite(ring)):
+        raise FloorplanError(f"{src}: feature #{i} ({what}): non-finite coordinates")
     if not np.allclose(ring[0, :2], ring[-1, :2]):
         raise FloorplanError(
             f"{src}: feature #{i} ({what}): polygon ring is not closed "
             f"(first {ring[0, :2].tolist()} != last {ring[-1, :2].tolist()})"
         )
     return ring[:, :2]
+
+
+def _rings(src, i, what, feat) -> list[np.ndarray]:
+    rings = (feat.get("geometry") or {}).get("coordinates")
+    if not isinstance(rings, list) or not rings:
+        raise FloorplanError(f"{src}: feature #{i} ({what}): Polygon needs a list of rings")
+    return [_ring(src, i, what, r) for r in rings]
 
 
 def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | None = None):
@@ -73,8 +85,7 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
                     walls.append([a, b])
                     thick.append(t)
             elif gtype == "Polygon":
-                arr = f["geometry"]["coordinates"]
-                rings = [_ring(source, i, "wall", r) for r in arr]
+                rings = _rings(source, i, "wall", f)
                 poly = Polygon(rings[0], rings[1:])
                 if not poly.is_valid:
                     raise FloorplanError(f"{source}: feature #{i} (wall): invalid polygon")
@@ -90,8 +101,7 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
                     f"{source}: feature #{i} (room): geometry type {gtype!r}, expected Polygon"
                 )
             rname = str(props.get("name", f"room{i}"))
-            _coords(source, i, f, f"room {rname!r}")
-            rings = [_ring(source, i, f"room {rname!r}", r) for r in f["geometry"]["coordinates"]]
+            rings = _rings(source, i, f"room {rname!r}", f)
             poly = Polygon(rings[0], rings[1:])
             if not poly.is_valid:
                 raise FloorplanError(

@@ -1,4 +1,5 @@
-"""Decision layer: anchors, feasibility gate, top-1 consensus, lattice, alias probe, states."""
+"""Decision layer: anchors, feasibility gate, top-1 consensus, lattice, building symmetries,
+alias probe, states."""
 
 from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
 from mfcl_jax.decision.consensus import champions, group, leader_groups
@@ -32,6 +33,7 @@ from mfcl_jax.decision.state import (
     decide_prefix,
 )
 from mfcl_jax.decision.stream import Decision, SelectiveInitializer
+from mfcl_jax.decision.symmetry import rotational_motions
 
 __all__ = [
     "AMBIGUOUS",
@@ -67,6 +69,7 @@ __all__ = [
     "prefix_table",
     "probe",
     "rooms_spanned",
+    "rotational_motions",
     "sanitize",
     "to_frame",
     "variants",

@@ -173,7 +173,9 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
     """One row per run x window x threshold set x policy (host side, NumPy/pandas).
 
     ``x, y, yaw_deg`` hold the policy's anchor (ours: the winner T*, the commit anchor when the
-    state is COMMIT); ``tau_x, tau_y`` are NaN unless the kind is translation.
+    state is COMMIT); ``tau_x, tau_y`` are NaN unless the kind is translation. A rotational
+    alias is reported by ``kind == "rotation"``; its self-motion stays in
+    ``Decisions.alias_motion`` (no column, so the table schema is unchanged).
     """
     d = jax.tree.map(np.asarray, jax.block_until_ready(dec))
     r, k, s, v = d.state.shape

@@ -33,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mfcl_jax.decision import symmetry
 from mfcl_jax.floorplan.raster import Rasters
 
 __all__ = [
@@ -68,6 +69,10 @@ class GateMaps:
         offsets_mask: ``(P,)`` bool.
         generators: ``(G, 2)`` fundamental congruent-room offsets (one sign), padded.
         generators_mask: ``(G,)`` bool.
+        motions: ``(M, 3)`` rotational self-motions ``g = (x, y, theta)`` of the building
+            (rigid motions by a quarter turn mapping rooms onto distinct congruent rooms; see
+            ``symmetry``), padded.
+        motions_mask: ``(M,)`` bool.
         res: cell size (m).
     """
 
@@ -78,6 +83,8 @@ class GateMaps:
     offsets_mask: jax.Array
     generators: jax.Array
     generators_mask: jax.Array
+    motions: jax.Array
+    motions_mask: jax.Array
     res: float = 0.10
 
     @property
@@ -95,6 +102,8 @@ jax.tree_util.register_dataclass(
         "offsets_mask",
         "generators",
         "generators_mask",
+        "motions",
+        "motions_mask",
     ],
     meta_fields=["res"],
 )
@@ -146,10 +155,10 @@ def _fundamentals(offsets: np.ndarray, tol: float) -> np.ndarray:
     return np.asarray(keep, np.float64).reshape(-1, 2)
 
 
-def _pad(a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def _pad(a: np.ndarray, n: int, what: str = "room offsets") -> tuple[np.ndarray, np.ndarray]:
     if a.shape[0] > n:
-        raise ValueError(f"gate_maps: {a.shape[0]} room offsets exceed the capacity {n}")
-    out = np.zeros((n, 2), np.float32)
+        raise ValueError(f"gate_maps: {a.shape[0]} {what} exceed the capacity {n}")
+    out = np.zeros((n, a.shape[1]), np.float32)
     out[: a.shape[0]] = a
     return out, np.arange(n) < a.shape[0]
 
@@ -190,6 +199,7 @@ def gate_maps(
     max_offsets: int | None = None,
     max_generators: int = 2,
     dedupe: float = 0.5,
+    max_motions: int | None = None,
 ) -> GateMaps:
     """Builds ``GateMaps`` on the host from a ``Floorplan`` or ready ``Rasters``.
 
@@ -202,7 +212,11 @@ def gate_maps(
         max_offsets: static capacity of the congruent-room offset list (default: sized to
             the building, a power of two >= 32).
         max_generators: static capacity of the fundamental offsets used by the alias probe.
-        dedupe: offsets closer than this (m) are merged; also the multiple-test tolerance.
+        dedupe: offsets closer than this (m) are merged; also the multiple-test tolerance and
+            the merge distance of rotational motions.
+        max_motions: static capacity of the rotational self-motions probed as aliases
+            (default: sized to the building, a power of two >= 8). Bare ``Rasters`` carry no
+            room polygons and get none.
 
     Returns:
         ``GateMaps`` with NumPy leaves (``jax.tree.map(jnp.asarray, m)`` moves them).
@@ -241,9 +255,19 @@ def gate_maps(
         max_offsets = 32
         while max_offsets < len(offs):
             max_offsets *= 2
+    if isinstance(source, Rasters):
+        mots = np.zeros((0, 3))
+    else:
+        mots, _ = symmetry.rotational_motions(source, min_iou, dedupe)
+    if max_motions is None:
+        max_motions = 8
+        while max_motions < len(mots):
+            max_motions *= 2
     o, om = _pad(offs, max_offsets)
     g, gm = _pad(gens, max_generators)
-    return GateMaps(np.asarray(r.origin, np.float32), label, adj, o, om, g, gm, float(r.res))
+    mo, mm = _pad(mots, max_motions, "rotational motions")
+    origin = np.asarray(r.origin, np.float32)
+    return GateMaps(origin, label, adj, o, om, g, gm, mo, mm, float(r.res))
 
 
 def labels(maps: GateMaps, H, traj):
@@ -383,11 +407,14 @@ def rooms_spanned(maps: GateMaps, H, traj, traj_mask, end):
     return jnp.sum(seen, axis=-1).astype(jnp.int32)
 
 
-def pad_maps(m: GateMaps, shape: tuple[int, int], n_rooms: int | None = None) -> GateMaps:
+def pad_maps(
+    m: GateMaps, shape: tuple[int, int], n_rooms: int | None = None, n_motions: int | None = None
+) -> GateMaps:
     """Pads host ``GateMaps`` to a grid bucket ``(H, W)`` and a room count (outside stays last).
 
-    Padding cells are ``OUTSIDE``; padded rooms are isolated. Lets runs of different buildings
-    (or tests) share one compiled shape.
+    Padding cells are ``OUTSIDE``; padded rooms are isolated; ``n_motions`` (default: kept)
+    pads the rotational-motion capacity. Lets runs of different buildings (or tests) share one
+    compiled shape.
     """
     h, w = np.asarray(m.label).shape
     H, W = shape
@@ -403,10 +430,17 @@ def pad_maps(m: GateMaps, shape: tuple[int, int], n_rooms: int | None = None) ->
     adj[R, :n] = a[n, :n]
     adj[R, R] = True
     adj[np.arange(R), np.arange(R)] = True
+    mo, mm = np.asarray(m.motions), np.asarray(m.motions_mask)
+    M = mo.shape[0] if n_motions is None else n_motions
+    if M < int(mm.sum()):
+        raise ValueError(f"pad_maps: {int(mm.sum())} rotational motions exceed n_motions={M}")
+    mo, mm = _pad(mo[mm], M, "rotational motions")
     return GateMaps(
         np.asarray(m.origin),
         label,
         adj,
         *(np.asarray(x) for x in (m.offsets, m.offsets_mask, m.generators, m.generators_mask)),
+        mo,
+        mm,
         m.res,
     )

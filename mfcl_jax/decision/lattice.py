@@ -42,7 +42,8 @@ __all__ = [
     "detect",
 ]
 
-# Kind codes of AMBIGUOUS. Rotation and mirror classes are reserved (not detected yet).
+# Kind codes of AMBIGUOUS. Rotation classes come from the alias probe (quarter-turn
+# self-motions of the building, see ``symmetry``); the mirror class is reserved (not detected).
 KIND_NONE, TRANSLATION, MULTIMODAL, ROTATION, MIRROR = 0, 1, 2, 3, 4
 KIND_NAMES = {
     KIND_NONE: None,

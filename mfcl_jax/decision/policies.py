@@ -103,6 +103,7 @@ def _decision(state, anchor, reason, max_score, b1=0, b2=0, n=0, c=0.0, gate=Fal
         probe_c=z,
         reason=reason.astype(i32),
         max_score=max_score,
+        alias_motion=jnp.zeros((*state.shape, 3), anchor.dtype),
     )
 
 

@@ -12,8 +12,10 @@ Order of tests (first that fires wins):
 4. fewer than 2 rooms spanned under T*                 -> DEFER ("unsaturated")
 5. T* fails the gate / spread > sigma_max              -> DEFER ("winner infeasible"/"spread")
 6. margin < delta_min and tied groups form a lattice   -> AMBIGUOUS(translation, tau)
-7. B1 >= b_min and margin >= delta_min: probe aliases; an admissible one
-   -> AMBIGUOUS(translation, tau), else COMMIT(T*)
+7. B1 >= b_min and margin >= delta_min: probe aliases; an admissible translational one
+   -> AMBIGUOUS(translation, tau), else an admissible rotational one (``g T*`` for a
+   rotational self-motion ``g`` of the building) -> AMBIGUOUS(rotation; ``tau`` zero, ``g`` in
+   ``Decisions.alias_motion``), else COMMIT(T*)
 8. otherwise -> AMBIGUOUS (multimodal with >= 2 groups, no kind with one group)
 
 ``T*`` (the reported anchor, ``Decisions.anchor``) is the mean of the winner's most recent
@@ -140,6 +142,7 @@ class Decisions:
     probe_c: jax.Array
     reason: jax.Array  # int32 key of REASONS
     max_score: jax.Array
+    alias_motion: jax.Array  # (3,) self-motion g of the rotational alias; zero unless rotation
 
 
 jax.tree_util.register_dataclass(
@@ -219,6 +222,8 @@ def finish(
     p_alias = pr.alias & use_probe
     p_tau = jnp.where(use_probe, pr.tau, jnp.zeros_like(pr.tau))
     p_c = jnp.where(use_probe, pr.c_alias, jnp.zeros_like(pr.c_alias))
+    r_alias = pr.rot_alias & use_probe
+    r_c = jnp.where(use_probe, pr.c_rot, jnp.zeros_like(pr.c_rot))
     gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
     b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
     decisive = (b1 >= b_min) & (margin >= delta_min)
@@ -231,12 +236,18 @@ def finish(
         g.spread > p.sigma_max,
         (margin < delta_min) & lat_ok,
         decisive & p_alias,
+        decisive & r_alias,
         decisive,
     ]
     multi = jnp.where(g.n_groups >= 2, lattice.MULTIMODAL, lattice.KIND_NONE)
-    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, COMMIT]
-    kinds = [lattice.KIND_NONE] * 6 + [lattice.TRANSLATION, lattice.TRANSLATION, lattice.KIND_NONE]
-    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0]
+    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, AMBIGUOUS, COMMIT]
+    kinds = [lattice.KIND_NONE] * 6 + [
+        lattice.TRANSLATION,
+        lattice.TRANSLATION,
+        lattice.ROTATION,
+        lattice.KIND_NONE,
+    ]
+    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0, 0]
     state = jnp.select(tests, states, AMBIGUOUS).astype(jnp.int32)
     kind = jnp.select(tests, kinds, multi).astype(jnp.int32)
     reason = jnp.select(tests, reasons, 0).astype(jnp.int32)
@@ -255,10 +266,11 @@ def finish(
         rooms=pr.rooms,
         c_winner=pr.c_winner,
         winner_gate=pr.c_winner >= p.tau_c,
-        probe_alias=p_alias,
-        probe_c=p_c,
+        probe_alias=p_alias | r_alias,
+        probe_c=jnp.maximum(p_c, r_c),
         reason=reason,
         max_score=core.max_score,
+        alias_motion=jnp.where(kind == lattice.ROTATION, pr.motion, jnp.zeros_like(pr.motion)),
     )
 
 

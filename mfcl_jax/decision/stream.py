@@ -39,7 +39,9 @@ class Decision:
         kind: None | "translation" | "multimodal" | "rotation" | "mirror".
         tau: ``(tx, ty)`` or None.
         diagnostics: B1, B2, margin, spread, rooms, c_winner, winner_gate, probe_alias,
-            probe_c, n_champions, n_groups, reason, n_rejected.
+            probe_c, n_champions, n_groups, reason, n_rejected, and alias_motion: the
+            building's self-motion ``g = (x, y, yaw)`` carrying T* onto its rotational alias
+            ``g T*`` when the kind is rotation (None otherwise).
     """
 
     k: int
@@ -211,5 +213,8 @@ class SelectiveInitializer:
                 "n_groups": int(d.n_groups),
                 "reason": REASONS[int(d.reason)],
                 "n_rejected": self.n_rejected,
+                "alias_motion": (
+                    tuple(float(v) for v in d.alias_motion) if kind == "rotation" else None
+                ),
             },
         )

@@ -1,12 +1,12 @@
 """Registration front-end: pose Hough transform over wall corners, occupancy-aware
 verification, continuous refinement; plus a CSV adapter for external front-ends."""
 
+from mfcl_jax.frontend.csv_adapter import load_candidates_csv
 from mfcl_jax.frontend.registry import (
     FloorplanFeatures,
     FrontendParams,
     build_features,
     common_features,
-    load_candidates_csv,
     make_register,
     register,
     sanitize_submaps,

@@ -23,10 +23,8 @@ from mfcl_jax.decision.evaluate import batch_inputs, evaluate, to_frame
 from mfcl_jax.decision.gate import GateMaps, gate_maps, pad_maps
 from mfcl_jax.decision.state import DecisionParams
 from mfcl_jax.evaluate import metrics
-from mfcl_jax.floorplan.raster import pad_to
 from mfcl_jax.floorplan.scenes import get_scene
 from mfcl_jax.frontend import registry
-from mfcl_jax.frontend.features import floorplan_corners
 from mfcl_jax.sim import SimParams, simulate
 
 __all__ = [
@@ -100,31 +98,6 @@ def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True)
     return StudyData(sub, runs, truth, pd.concat(frames, ignore_index=True), scene_of, objs)
 
 
-def common_features(floorplans, params) -> registry.FloorplanFeatures:
-    """Front-end features of several buildings padded to one bucket and stacked ``(B, ...)``."""
-    rasters = [fp.rasterize() for fp in floorplans]
-    shape = tuple(int(max(r.shape[i] for r in rasters)) for i in range(2))
-    n_rooms = max(r.n_rooms for r in rasters)
-    corners = [floorplan_corners(fp) for fp in floorplans]
-    cap = max(len(np.asarray(c[0])) for c in corners)
-    feats = []
-    for fp, r, c in zip(floorplans, rasters, corners, strict=True):
-        c = tuple(np.asarray(x) for x in c)
-        n = len(c[0])
-        pad = [(0, cap - n)] + [(0, 0)] * (c[0].ndim - 1)
-        c = (
-            np.pad(c[0], pad),
-            np.pad(c[1], (0, cap - n)),
-            np.pad(c[2], (0, cap - n)),
-            np.pad(c[3], (0, cap - n)),
-            np.pad(c[4], (0, cap - n), constant_values=False),
-        )
-        feats.append(
-            registry.build_features(fp, params, rasters=pad_to(r, shape, n_rooms), corners=c)
-        )
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *feats)
-
-
 def _chunked_register(params):
     """A jitted ``(submaps, building index, stacked features) -> Candidates`` for any mix."""
 
@@ -155,7 +128,8 @@ def _chunked_register(params):
 
 def register_all(data: StudyData, params, timings: Timings, progress=True) -> Candidates:
     """Runs the front-end on every submap of the study in one compiled call."""
-    feats = common_features([s.floorplan for s in data.scenes], params)
+    feats = registry.common_features([s.floorplan for s in data.scenes], params)
+    feats = jax.tree.map(lambda *xs: jnp.stack(xs), *feats)
     sub = registry.sanitize_submaps(jax.tree.map(np.asarray, data.submaps))
     n = sub.n
     n_pad = -(-n // CHUNK) * CHUNK

@@ -66,16 +66,23 @@ def pad_batch(b: SubmapBatch, n: int, P: int) -> SubmapBatch:
     if P < b.points.shape[1] and np.asarray(b.mask)[:, P:].any():
         raise ValueError(f"pad_batch: submaps hold more than {P=} points")
     b = jax.tree.map(lambda a: np.asarray(a)[:, :P] if np.ndim(a) >= 2 else np.asarray(a), b)
+
     def pad(a, fill=0):
         a = np.asarray(a)
         out = np.full((n, *((P,) if a.ndim >= 2 else ()), *a.shape[2:]), fill, a.dtype)
         out[tuple(slice(0, s) for s in a.shape[:2])] = a
         return out
 
-    return SubmapBatch(points=pad(b.points), origins=pad(b.origins), mask=pad(b.mask, False),
-                       X=np.concatenate([np.asarray(b.X), np.zeros((n - b.n, 3), np.float32)]),
-                       run=pad(b.run), window=pad(b.window), t=pad(b.t),
-                       n_dropped=pad(b.n_dropped))
+    return SubmapBatch(
+        points=pad(b.points),
+        origins=pad(b.origins),
+        mask=pad(b.mask, False),
+        X=np.concatenate([np.asarray(b.X), np.zeros((n - b.n, 3), np.float32)]),
+        run=pad(b.run),
+        window=pad(b.window),
+        t=pad(b.t),
+        n_dropped=pad(b.n_dropped),
+    )
 
 
 def timed(fn, *args, repeats=5) -> float:
@@ -108,25 +115,43 @@ def metrics(c, dbg, Y) -> dict:
     a0, a1 = np.degrees(t0[r, k][near]), np.degrees(t1[r, k][near])
     moved = np.any(dbg["refined"] != dbg["pose0"], -1) & dbg["ok0"]
     q = lambda a, pct: float(np.percentile(a, pct)) if len(a) else np.nan  # noqa: E731
-    return dict(
-        n_submaps=n, recall_at_J=found.mean(), top1=hit[:, 0].mean(),
-        share_2walls=walls.mean(), top1_2walls=hit[walls, 0].mean() if walls.any() else np.nan,
-        share_corner=(dbg["n_corners"] >= 1).mean(),
-        alias_share=wrong.mean(),
-        alias_lt3m=(d_alias < 3).sum() / n,
-        alias_5to9m=((d_alias >= 5.5) & (d_alias < 9)).sum() / n,
-        alias_12to17m=((d_alias >= 12.5) & (d_alias < 16.5)).sum() / n,
-        alias_other=wrong.mean() - ((d_alias < 3) | ((d_alias >= 5.5) & (d_alias < 9))
-                                    | ((d_alias >= 12.5) & (d_alias < 16.5))).sum() / n,
-        alias_median_m=float(np.median(d_alias)) if len(d_alias) else np.nan,
-        median_rank=float(np.median(rank[found])) if found.any() else np.nan,
-        max_rank=int(rank.max()), empty=int((~c.mask.any(1)).sum()),
-        refine_accepted=moved.sum() / max(dbg["ok0"].sum(), 1),
-        err_before_m=q(e0, 50), err_before_p90_m=q(e0, 90),
-        err_after_m=q(e1, 50), err_after_p90_m=q(e1, 90),
-        err_before_deg=q(a0, 50), err_before_p90_deg=q(a0, 90),
-        err_after_deg=q(a1, 50), err_after_p90_deg=q(a1, 90),
-    ), found, dxy[:, 0], np.degrees(dth[:, 0])
+    return (
+        dict(
+            n_submaps=n,
+            recall_at_J=found.mean(),
+            top1=hit[:, 0].mean(),
+            share_2walls=walls.mean(),
+            top1_2walls=hit[walls, 0].mean() if walls.any() else np.nan,
+            share_corner=(dbg["n_corners"] >= 1).mean(),
+            alias_share=wrong.mean(),
+            alias_lt3m=(d_alias < 3).sum() / n,
+            alias_5to9m=((d_alias >= 5.5) & (d_alias < 9)).sum() / n,
+            alias_12to17m=((d_alias >= 12.5) & (d_alias < 16.5)).sum() / n,
+            alias_other=wrong.mean()
+            - (
+                (d_alias < 3)
+                | ((d_alias >= 5.5) & (d_alias < 9))
+                | ((d_alias >= 12.5) & (d_alias < 16.5))
+            ).sum()
+            / n,
+            alias_median_m=float(np.median(d_alias)) if len(d_alias) else np.nan,
+            median_rank=float(np.median(rank[found])) if found.any() else np.nan,
+            max_rank=int(rank.max()),
+            empty=int((~c.mask.any(1)).sum()),
+            refine_accepted=moved.sum() / max(dbg["ok0"].sum(), 1),
+            err_before_m=q(e0, 50),
+            err_before_p90_m=q(e0, 90),
+            err_after_m=q(e1, 50),
+            err_after_p90_m=q(e1, 90),
+            err_before_deg=q(a0, 50),
+            err_before_p90_deg=q(a0, 90),
+            err_after_deg=q(a1, 50),
+            err_after_p90_deg=q(a1, 90),
+        ),
+        found,
+        dxy[:, 0],
+        np.degrees(dth[:, 0]),
+    )
 
 
 def diagnose(b, Y, feats, p, rows):
@@ -135,20 +160,29 @@ def diagnose(b, Y, feats, p, rows):
         pts, org, ok, _ = features.subsample(b.points[i], b.origins[i], b.mask[i], p.hough_points)
         lines = features.detect_lines(pts, org, ok, p)
         corners = features.detect_corners(lines, ok, p)
-        plan = (feats.corner_pos, feats.corner_a1, feats.corner_a2, feats.corner_kind,
-                feats.corner_valid)
+        plan = (
+            feats.corner_pos,
+            feats.corner_a1,
+            feats.corner_a2,
+            feats.corner_kind,
+            feats.corner_valid,
+        )
         votes, w = hough.corner_votes(corners, plan, p)
         dxy, dth = (np.asarray(a) for a in se2.distance_pair(votes, np.float32(Y[i])))
         v = np.asarray(w) > 0
         j = np.argmin(np.where(v, dxy + 0.2 * np.degrees(dth), np.inf))
-        print(f"    miss row {i}: {int(b.mask[i].sum())} pts, {int(lines['valid'].sum())} lines, "
-              f"{int(corners['valid'].sum())} corners, {int(v.sum())} votes, nearest vote "
-              f"{dxy[j]:.2f} m / {np.degrees(dth[j]):.1f} deg", flush=True)
+        print(
+            f"    miss row {i}: {int(b.mask[i].sum())} pts, {int(lines['valid'].sum())} lines, "
+            f"{int(corners['valid'].sum())} corners, {int(v.sum())} votes, nearest vote "
+            f"{dxy[j]:.2f} m / {np.degrees(dth[j]):.1f} deg",
+            flush=True,
+        )
 
 
 def stage_fn(k, p):
     """Pipeline prefix ``k`` (0 lines, 1 corners, 2 votes+accumulator, 3 prescreen+verify,
     4 refine, 5 re-score) for the stage profile."""
+
     def run(points, origins, mask, feats):
         points, origins, mask = features.compact(points, origins, mask)
         sub = partial(features.subsample, points, origins, mask, compacted=True)
@@ -159,8 +193,13 @@ def stage_fn(k, p):
         corners = features.detect_corners(lines, ok, p)
         if k == 1:
             return corners["pos"]
-        plan = (feats.corner_pos, feats.corner_a1, feats.corner_a2, feats.corner_kind,
-                feats.corner_valid)
+        plan = (
+            feats.corner_pos,
+            feats.corner_a1,
+            feats.corner_a2,
+            feats.corner_kind,
+            feats.corner_valid,
+        )
         peaks, _, _, _, _ = hough.vote(*hough.corner_votes(corners, plan, p), p, p.n_prescreen)
         if k == 2:
             return peaks
@@ -168,8 +207,10 @@ def stage_fn(k, p):
         def scorer(n):
             vp, vo, vok, _ = sub(n)
             q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
-            return jax.vmap(lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ,
-                                                   p.lambda_free))
+            return jax.vmap(
+                lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ, p.lambda_free)
+            )
+
         ph = peaks[jnp.argsort(-scorer(p.prescreen_points)(peaks))[: p.n_hough]]
         s = scorer(p.verify_points)(ph)
         if k == 3:
@@ -177,6 +218,7 @@ def stage_fn(k, p):
         rp, _, rok, _ = sub(p.refine_points)
         p1 = refine.refine(ph[jnp.argsort(-s)[: p.J]], rp, rok, feats, p)
         return p1 if k == 4 else scorer(p.verify_points)(p1)
+
     return jax.jit(jax.vmap(run, in_axes=(0, 0, 0, None)))
 
 
@@ -190,20 +232,39 @@ def timing(p, fp, b, feats_one, out_rows, quick=False):
         t0 = time.perf_counter()
         jax.block_until_ready(fn(bb, feats_one))
         comp = time.perf_counter() - t0
-        out_rows.append(dict(kind="points", P=P, area_x=1, mode="batched",
-                             ms_per_submap=1e3 * timed(fn, bb, feats_one, repeats=reps) / b.n,
-                             compile_s=comp, load=load()))
+        out_rows.append(
+            dict(
+                kind="points",
+                P=P,
+                area_x=1,
+                mode="batched",
+                ms_per_submap=1e3 * timed(fn, bb, feats_one, repeats=reps) / b.n,
+                compile_s=comp,
+                load=load(),
+            )
+        )
         print(out_rows[-1], flush=True)
     bb = pad_batch(b, N, 2048)
-    ones = [pad_batch(jax.tree.map(lambda a, i=i: np.asarray(a)[i:i + 1], b), 1, 2048)
-            for i in range(5)]
+    ones = [
+        pad_batch(jax.tree.map(lambda a, i=i: np.asarray(a)[i : i + 1], b), 1, 2048)
+        for i in range(5)
+    ]
     fn = jax.jit(partial(register, params=p))
     t0 = time.perf_counter()
     jax.block_until_ready(fn(ones[0], feats_one))
     comp = time.perf_counter() - t0
     ts = [timed(fn, o, feats_one, repeats=reps) for o in ones]
-    out_rows.append(dict(kind="single", P=2048, area_x=1, mode="one at a time",
-                         ms_per_submap=1e3 * float(np.median(ts)), compile_s=comp, load=load()))
+    out_rows.append(
+        dict(
+            kind="single",
+            P=2048,
+            area_x=1,
+            mode="one at a time",
+            ms_per_submap=1e3 * float(np.median(ts)),
+            compile_s=comp,
+            load=load(),
+        )
+    )
     print(out_rows[-1], flush=True)
     r = fp.rasterize(0.10)
     for ax in (2, 4):
@@ -212,9 +273,17 @@ def timing(p, fp, b, feats_one, out_rows, quick=False):
         f = build_features(fp, p, rasters=r, shape=shape, corner_capacity=64 * ax)
         fn = jax.jit(partial(register, params=p))
         jax.block_until_ready(fn(bb, f))
-        out_rows.append(dict(kind="area", P=2048, area_x=ax, mode="batched",
-                             ms_per_submap=1e3 * timed(fn, bb, f, repeats=reps) / b.n,
-                             compile_s=np.nan, load=load()))
+        out_rows.append(
+            dict(
+                kind="area",
+                P=2048,
+                area_x=ax,
+                mode="batched",
+                ms_per_submap=1e3 * timed(fn, bb, f, repeats=reps) / b.n,
+                compile_s=np.nan,
+                load=load(),
+            )
+        )
         print(out_rows[-1], flush=True)
     prev = 0.0
     names = ("lines", "corners", "votes+accumulator", "prescreen+verify", "refine", "re-score")
@@ -223,8 +292,18 @@ def timing(p, fp, b, feats_one, out_rows, quick=False):
         args = (bb.points, bb.origins, bb.mask, feats_one)
         jax.block_until_ready(fn(*args))
         ms = 1e3 * timed(fn, *args, repeats=reps) / b.n
-        out_rows.append(dict(kind="stage", stage=name, P=2048, area_x=1, mode="batched",
-                             ms_per_submap=ms - prev, ms_cumulative=ms, load=load()))
+        out_rows.append(
+            dict(
+                kind="stage",
+                stage=name,
+                P=2048,
+                area_x=1,
+                mode="batched",
+                ms_per_submap=ms - prev,
+                ms_cumulative=ms,
+                load=load(),
+            )
+        )
         print(out_rows[-1], flush=True)
         prev = ms
 
@@ -248,15 +327,29 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
         t_first = time.perf_counter() - t0
         c, dbg = jax.tree.map(lambda a, n=b.n: np.asarray(a)[:n], (c, dbg))
         m, found, e_xy, e_deg = metrics(c, dbg, Y)
-        rows.append(dict(scene=name, d_s=d_s, seeds=" ".join(map(str, seeds)), P=P, J=p.J,
-                         area_m2=float(get_scene(name).floorplan.footprint.area), **m,
-                         first_call_s=t_first))
-        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in rows[-1].items()},
-              flush=True)
+        rows.append(
+            dict(
+                scene=name,
+                d_s=d_s,
+                seeds=" ".join(map(str, seeds)),
+                P=P,
+                J=p.J,
+                area_m2=float(get_scene(name).floorplan.footprint.area),
+                **m,
+                first_call_s=t_first,
+            )
+        )
+        print(
+            {k: (round(v, 4) if isinstance(v, float) else v) for k, v in rows[-1].items()},
+            flush=True,
+        )
         if not found.all():
             diagnose(b, Y, feats[name], p, np.flatnonzero(~found))
-        errs += [dict(scene=name, d_s=d_s, top1_err_m=e, top1_err_deg=t)
-                 for e, t, ok in zip(e_xy, e_deg, c.mask[:, 0], strict=True) if ok]
+        errs += [
+            dict(scene=name, d_s=d_s, top1_err_m=e, top1_err_deg=t)
+            for e, t, ok in zip(e_xy, e_deg, c.mask[:, 0], strict=True)
+            if ok
+        ]
     df = pd.DataFrame(rows)
     out.mkdir(parents=True, exist_ok=True)
     df.to_csv(out / "frontend.csv", index=False)
@@ -274,8 +367,9 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
 def figure(df, ed, tdf, p, path):
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
     for name, g in ed.groupby("scene"):
-        ax[0].hist(np.clip(g.top1_err_m, 1e-3, 30), bins=np.geomspace(1e-3, 30, 60), alpha=0.6,
-                   label=name)
+        ax[0].hist(
+            np.clip(g.top1_err_m, 1e-3, 30), bins=np.geomspace(1e-3, 30, 60), alpha=0.6, label=name
+        )
     for x, lab in ((7.3, "bay 7.3 m"), (14.4, "room 14.4 m")):
         ax[0].axvline(x, color="k", ls=":", lw=0.8)
         ax[0].text(x, ax[0].get_ylim()[1] * 0.9, lab, rotation=90, fontsize=7, ha="right")

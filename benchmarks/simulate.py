@@ -37,15 +37,19 @@ def _cast_only(scenes, n_seeds, params):
     """The ray cast of the same scans, padded as ``simulate`` pads them (one call per scene)."""
     out = []
     for sc in scenes:
-        poses = np.concatenate([sample_path(wp, params.trajectory).poses
-                                for wp in sc.trajectories.values()] * n_seeds)
+        poses = np.concatenate(
+            [sample_path(wp, params.trajectory).poses for wp in sc.trajectories.values()] * n_seeds
+        )
         s_cap, segs = bucket(len(poses)), sc.segments
         seg = np.zeros((bucket(len(segs), 64), 2, 2))
         seg[: len(segs)] = segs
         pad = np.concatenate([poses, np.repeat(poses[-1:], s_cap - len(poses), 0)])
         keys = jax.random.split(jax.random.PRNGKey(0), s_cap)
-        out.append(cast(pad, seg, params.lidar, key=keys,
-                        seg_valid=np.arange(len(seg)) < len(segs)).block_until_ready())
+        out.append(
+            cast(
+                pad, seg, params.lidar, key=keys, seg_valid=np.arange(len(seg)) < len(segs)
+            ).block_until_ready()
+        )
     return out
 
 
@@ -75,17 +79,32 @@ def main(argv=None) -> pd.DataFrame:
     for n_seeds in args.seeds:
         seeds = list(range(n_seeds))
         sims, first, med = _timed(lambda seeds=seeds: _sim_all(scenes, seeds, params), args.reps)
-        n_scans = sum(len(sample_path(wp, params.trajectory).poses) * n_seeds
-                      for s in scenes for wp in s.trajectories.values())
+        n_scans = sum(
+            len(sample_path(wp, params.trajectory).poses) * n_seeds
+            for s in scenes
+            for wp in s.trajectories.values()
+        )
         n_runs = sum(len(s.runs) for s in sims)
         n_sub = sum(s.submaps.n for s in sims)
         cap = "/".join(str(s.submaps.points.shape[1]) for s in sims)
         _, c_first, c_med = _timed(lambda n=n_seeds: _cast_only(scenes, n, params), args.reps)
-        rows.append(dict(seeds=n_seeds, runs=n_runs, scans=n_scans, submaps=n_sub,
-                         capacity=cap, beams=params.lidar.n_beams,
-                         first_call_s=first, compile_s=max(first - med, 0.0), run_s=med,
-                         cast_compile_s=max(c_first - c_med, 0.0), cast_run_s=c_med,
-                         scans_per_s=n_scans / med, device=jax.devices()[0].platform))
+        rows.append(
+            dict(
+                seeds=n_seeds,
+                runs=n_runs,
+                scans=n_scans,
+                submaps=n_sub,
+                capacity=cap,
+                beams=params.lidar.n_beams,
+                first_call_s=first,
+                compile_s=max(first - med, 0.0),
+                run_s=med,
+                cast_compile_s=max(c_first - c_med, 0.0),
+                cast_run_s=c_med,
+                scans_per_s=n_scans / med,
+                device=jax.devices()[0].platform,
+            )
+        )
     df = pd.DataFrame(rows)
     with pd.option_context("display.width", 160, "display.float_format", "{:.3f}".format):
         print(df.to_string(index=False))

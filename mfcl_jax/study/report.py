@@ -106,7 +106,8 @@ def build_tables(
         t["paper_comparison"] = paper.comparison(three[three["seed"] == main_seed], three, extra)
     if timings is not None:
         t["timings"] = timings
-    firsts.to_csv(out / "per_seed.csv", index=False, float_format="%.4g") if out.exists() else None
+    out.mkdir(parents=True, exist_ok=True)
+    firsts.to_csv(out / "per_seed.csv", index=False, float_format="%.4g")
     for name, df in t.items():
         tables.write_table(df, out, name, latex=name in ("policy_table", "selective_metrics"))
     return t

@@ -160,13 +160,7 @@ def diagnose(b, Y, feats, p, rows):
         pts, org, ok, _ = features.subsample(b.points[i], b.origins[i], b.mask[i], p.hough_points)
         lines = features.detect_lines(pts, org, ok, p)
         corners = features.detect_corners(lines, ok, p)
-        plan = (
-            feats.corner_pos,
-            feats.corner_a1,
-            feats.corner_a2,
-            feats.corner_kind,
-            feats.corner_valid,
-        )
+        plan = feats.plan_corners
         votes, w = hough.corner_votes(corners, plan, p)
         dxy, dth = (np.asarray(a) for a in se2.distance_pair(votes, np.float32(Y[i])))
         v = np.asarray(w) > 0
@@ -193,13 +187,7 @@ def stage_fn(k, p):
         corners = features.detect_corners(lines, ok, p)
         if k == 1:
             return corners["pos"]
-        plan = (
-            feats.corner_pos,
-            feats.corner_a1,
-            feats.corner_a2,
-            feats.corner_kind,
-            feats.corner_valid,
-        )
+        plan = feats.plan_corners
         peaks, _, _, _, _ = hough.vote(*hough.corner_votes(corners, plan, p), p, p.n_prescreen)
         if k == 2:
             return peaks

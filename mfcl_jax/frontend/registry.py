@@ -164,6 +164,17 @@ class FloorplanFeatures:
     corner_kind: jax.Array
     corner_valid: jax.Array
 
+    @property
+    def plan_corners(self) -> tuple:
+        """``(pos, a1, a2, kind, valid)``, the plan side of the corner correspondences."""
+        return (
+            self.corner_pos,
+            self.corner_a1,
+            self.corner_a2,
+            self.corner_kind,
+            self.corner_valid,
+        )
+
 
 jax.tree_util.register_dataclass(
     FloorplanFeatures,
@@ -292,13 +303,7 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
     pts, org, ok, n_valid = sub(p.hough_points)
     lines = features.detect_lines(pts, org, ok, p)
     corners = features.detect_corners(lines, ok, p)
-    plan = (
-        feats.corner_pos,
-        feats.corner_a1,
-        feats.corner_a2,
-        feats.corner_kind,
-        feats.corner_valid,
-    )
+    plan = feats.plan_corners
     votes, w = hough.corner_votes(corners, plan, p)
     peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
 

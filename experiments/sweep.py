@@ -22,6 +22,8 @@ LIST_KEYS = ("d_s", "scenes")
 
 def batch_comma_lists(argv: list[str]) -> list[str]:
     """Rewrites ``key=a,b,c`` to ``key=[a,b,c]`` for list keys unless Hydra runs a multirun."""
+    # ``scene=x`` is accepted as the singular of ``scenes``.
+    argv = [re.sub(r"^(\+?)scene=", r"\1scenes=", a) for a in argv]
     if any(a in ("-m", "--multirun") for a in argv):
         return argv
     out = []

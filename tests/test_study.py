@@ -69,6 +69,8 @@ def test_comma_lists_are_batched_without_multirun():
     assert batch_comma_lists(["x", "d_s=5,6,7"]) == ["x", "d_s=[5,6,7]"]
     assert batch_comma_lists(["x", "-m", "d_s=5,6,7"]) == ["x", "-m", "d_s=5,6,7"]
     assert batch_comma_lists(["x", "seeds=3"]) == ["x", "seeds=3"]
+    assert batch_comma_lists(["x", "scene=symmetric_bays"]) == ["x", "scenes=symmetric_bays"]
+    assert batch_comma_lists(["x", "-m", "scene=a,b"]) == ["x", "-m", "scenes=a,b"]
 
 
 def test_tables_and_figures_have_their_schema(study):

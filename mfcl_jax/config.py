@@ -59,23 +59,19 @@ class StudyConfig:
     decision: DecisionParams = field(default_factory=DecisionParams)
 
 
-@dataclass
-class _SweepSchema:
-    """Top-level schema; ``d_s`` accepts a scalar (a multirun job) or a list."""
-
-    scenes: Any = MISSING
-    d_s: Any = MISSING
-    seeds: int = 10
-    seed0: int = 0
-    main_seed: int = 0
-    out: str = "results"
-    figures: bool = True
-    density_factor: int = 13
-    density_run: str = "T2@6"
-    progress: bool = True
-    sim: Any = MISSING
-    frontend: Any = MISSING
-    decision: Any = MISSING
+# The top-level schema is StudyConfig itself with the loosely typed fields relaxed: ``scenes``
+# and ``d_s`` take a scalar (one multirun job) or a list, and the parameter groups are filled
+# from their own group schemas (``register_configs``).
+_LOOSE = ("scenes", "d_s", "sim", "frontend", "decision")
+_SweepSchema = dataclasses.make_dataclass(
+    "_SweepSchema",
+    [
+        (f.name, Any, field(default=MISSING))
+        if f.name in _LOOSE
+        else (f.name, typing.get_type_hints(StudyConfig)[f.name], field(default=f.default))
+        for f in dataclasses.fields(StudyConfig)
+    ],
+)
 
 
 _MIRRORS: dict[type, type] = {}
@@ -151,18 +147,12 @@ def to_study(cfg: DictConfig) -> StudyConfig:
         raise ValueError(f"config: d_s must be positive numbers, got {d_s}")
     if int(cfg.seeds) < 1:
         raise ValueError(f"config: seeds must be >= 1, got {cfg.seeds}")
+    plain = {f.name: cfg[f.name] for f in dataclasses.fields(StudyConfig) if f.name not in _LOOSE}
     return StudyConfig(
         scenes=scenes,
         d_s=d_s,
-        seeds=int(cfg.seeds),
-        seed0=int(cfg.seed0),
-        main_seed=int(cfg.main_seed),
-        out=str(cfg.out),
-        figures=bool(cfg.figures),
-        density_factor=int(cfg.density_factor),
-        density_run=str(cfg.density_run),
-        progress=bool(cfg.progress),
         sim=build(SimParams, cfg.sim),
         frontend=build(FrontendParams, cfg.frontend),
         decision=build(DecisionParams, cfg.decision),
+        **plain,
     )

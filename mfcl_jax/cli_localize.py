@@ -62,7 +62,7 @@ def _load_input(args):
     """(floorplan, ScanSequence) from a dataset folder or a bag."""
     from mfcl_jax.floorplan.load import load_floorplan
     from mfcl_jax.io import DataError, load_dataset, read_bag
-    from mfcl_jax.pipeline.sequence import from_bag, from_dataset
+    from mfcl_jax.sources.sequence import from_bag, from_dataset
 
     if args.bag is None and args.dataset is None:
         raise DataError("localize: give a DATASET folder or --bag B (with --floorplan F)")

@@ -3,7 +3,7 @@ scoring against ground truth; simulated datasets; occupancy maps from logs; real
 
 from mfcl_jax.pipeline.localize import LocalizeParams, Localizer, WindowResult, localize
 from mfcl_jax.pipeline.score import format_table, pose_at, score_decisions, summarize
-from mfcl_jax.pipeline.sequence import (
+from mfcl_jax.sources.sequence import (
     ScanSequence,
     from_bag,
     from_carmen,

@@ -30,7 +30,7 @@ from shapely.geometry import Point
 from mfcl_jax import se2
 from mfcl_jax.pipeline.localize import LocalizeParams, Localizer
 from mfcl_jax.pipeline.score import pose_at, score_decisions, summarize
-from mfcl_jax.pipeline.sequence import ScanSequence, from_bag
+from mfcl_jax.sources.sequence import ScanSequence, from_bag
 
 __all__ = ["route", "run_all", "bag_ground_truth", "main"]
 

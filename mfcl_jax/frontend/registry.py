@@ -38,6 +38,7 @@ __all__ = [
     "FloorplanFeatures",
     "build_features",
     "common_features",
+    "common_shape",
     "register",
     "register_debug",
     "make_register",
@@ -265,34 +266,40 @@ def build_features(
     )
 
 
-def common_features(
-    floorplans, params: FrontendParams = FrontendParams(), res: float = 0.10, multiple: int = 64
-) -> list[FloorplanFeatures]:
-    """Features of several buildings padded to one shape bucket (one compilation for all).
+def common_shape(floorplans, res: float = 0.10, multiple: int = 64, margin: float = 1.0) -> dict:
+    """The one shape bucket that fits every floor plan's features.
 
-    Args:
-        floorplans: sequence of ``Floorplan``.
-        params: front-end parameters.
-        res: raster resolution (m).
-        multiple: raster sides and the corner capacity are rounded up to a multiple of this.
+    Raster sides and the corner capacity are rounded up to a multiple of ``multiple``; the
+    raster sides follow ``Floorplan.rasterize`` (``margin`` m around the bounds).
 
     Returns:
-        One ``FloorplanFeatures`` per floor plan, all with equal array shapes.
+        ``build_features`` keyword arguments ``res, shape, n_rooms, corner_capacity``.
     """
     fps = list(floorplans)
     if not fps:
-        raise ValueError("common_features: no floor plans given")
-    rs = [fp.rasterize(res=res) for fp in fps]
+        raise ValueError("common_shape: no floor plans given")
     up = lambda n: max(multiple, -(-n // multiple) * multiple)  # noqa: E731
-    shape = (up(max(r.shape[0] for r in rs)), up(max(r.shape[1] for r in rs)))
-    n_rooms = max(r.n_rooms for r in rs)
-    cap = up(max(len(fp.corners[0]) for fp in fps))
-    return [
-        build_features(
-            fp, params, res, rasters=r, shape=shape, n_rooms=n_rooms, corner_capacity=cap
-        )
-        for fp, r in zip(fps, rs, strict=True)
-    ]
+
+    def side(lo, hi):
+        return int(math.ceil((hi + margin - (lo - margin)) / res))
+
+    h = max(side(fp.bounds[1], fp.bounds[3]) for fp in fps)
+    w = max(side(fp.bounds[0], fp.bounds[2]) for fp in fps)
+    return dict(
+        res=res,
+        shape=(up(h), up(w)),
+        n_rooms=max(len(fp.rooms) for fp in fps),
+        corner_capacity=up(max(len(fp.corners[0]) for fp in fps)),
+    )
+
+
+def common_features(
+    floorplans, params: FrontendParams = FrontendParams(), res: float = 0.10, multiple: int = 64
+) -> list[FloorplanFeatures]:
+    """Features of several buildings padded to one shape bucket (one compilation for all)."""
+    fps = list(floorplans)
+    kw = common_shape(fps, res, multiple)
+    return [build_features(fp, params, **kw) for fp in fps]
 
 
 def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendParams):

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
 
-__all__ = ["TrajectoryParams", "Path", "sample_path", "odometry", "travelled"]
+__all__ = ["TrajectoryParams", "Path", "sample_path", "odometry"]
 
 
 @dataclass(frozen=True)
@@ -146,13 +145,3 @@ def odometry(true_poses, anchor, noise, drift_xy, drift_yaw):
     steps = se2.rotate(yaw[:-1], inc[:, :2])
     xy = x0[:2] + jnp.concatenate([jnp.zeros((1, 2), y.dtype), jnp.cumsum(steps, axis=0)])
     return jnp.concatenate([xy, se2.wrap(yaw)[:, None]], axis=-1)
-
-
-def travelled(poses) -> np.ndarray:
-    """Cumulative planar distance along poses ``(T, 3)`` (host)."""
-    return _arclength(np.asarray(poses, dtype=np.float64)[:, :2])
-
-
-def noise_for(key: jax.Array, n: int) -> jax.Array:
-    """Standard normal odometry noise ``(n, 3)`` for one run."""
-    return jax.random.normal(key, (n, 3))

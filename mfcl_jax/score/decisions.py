@@ -1,10 +1,12 @@
-"""Scoring a decisions log against ground truth (the only place ground truth is used).
+"""Scoring decisions against ground truth: the one scorer, the only code that reads it.
 
 A decision at time ``t`` with anchor ``T*`` places the robot at ``T* X(t)``, ``X(t)`` the
 odometry pose at ``t``; it is compared with the true pose at ``t``. Both are looked up by
 time in the odometry / ground-truth tables (exact match within 1 ms, otherwise linear
 interpolation between the bracketing lines; a time outside the table is an error).
-A commit is correct within ``metrics.CORRECT_XY`` m and ``metrics.CORRECT_YAW_DEG`` deg.
+A placement is correct within ``CORRECT_XY`` m and ``CORRECT_YAW_DEG`` deg (no room test:
+the study, the benchmark and ``mfcl evaluate`` share this one definition). The room names
+of the placed and the true pose are reported alongside when a floor plan is given.
 """
 
 from __future__ import annotations
@@ -15,10 +17,18 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax import se2
-from mfcl_jax.evaluate.metrics import CORRECT_XY, CORRECT_YAW_DEG
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
-__all__ = ["pose_at", "score_decisions", "summarize", "format_table"]
+__all__ = [
+    "pose_at",
+    "decisions_frame",
+    "score_rows",
+    "score_decisions",
+    "score_batch",
+    "summarize",
+    "format_table",
+]
 
 
 def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
@@ -49,22 +59,9 @@ def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
     return out
 
 
-def score_decisions(
-    decisions, odom_times, odom, gt_times, gt, floorplan=None, where: str = "<decisions>"
-) -> pd.DataFrame:
-    """Per-decision table with placement errors.
-
-    Args:
-        decisions: decision dicts (``io.read_decisions``).
-        odom_times, odom: ``(N,)``, ``(N, 3)`` odometry in L.
-        gt_times, gt: ``(M,)``, ``(M, 3)`` true sensor poses in B.
-        floorplan: optional, adds the placed and true room names.
-
-    Returns:
-        Columns ``k, t, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor, NaN when
-        none), ``err_xy, err_yaw_deg, correct`` (NaN/False without an anchor), and
-        ``room, true_room`` when a floor plan is given.
-    """
+def decisions_frame(decisions) -> pd.DataFrame:
+    """A decisions JSON-lines log (``io.read_decisions``) as a table: ``k, t, state,
+    symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none)."""
     rows = []
     for d in decisions:
         a = d["anchor"] or {}
@@ -82,9 +79,26 @@ def score_decisions(
                 yaw_deg=a.get("yaw_deg", math.nan),
             )
         )
-    df = pd.DataFrame(
-        rows, columns=["k", "t", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
-    )
+    cols = ["k", "t", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def score_rows(
+    df: pd.DataFrame, odom_times, odom, gt_times, gt, floorplan=None, where: str = "<decisions>"
+) -> pd.DataFrame:
+    """Adds placement errors to decision rows (columns ``k, t, x, y, yaw_deg``).
+
+    Args:
+        df: one row per decision; ``x, y, yaw_deg`` the anchor ``^B T_L`` (NaN: none).
+        odom_times, odom: ``(N,)``, ``(N, 3)`` odometry in L.
+        gt_times, gt: ``(M,)``, ``(M, 3)`` true sensor poses in B.
+        floorplan: optional, adds the placed and true room names.
+
+    Returns:
+        A copy with ``err_xy, err_yaw_deg, correct`` (NaN / False without an anchor),
+        ``true_x, true_y, placed_x, placed_y`` and, with a floor plan, ``room, true_room``.
+    """
+    df = df.copy()
     if df.empty:
         return df.assign(err_xy=[], err_yaw_deg=[], correct=[])
     if df["t"].isna().any():
@@ -109,6 +123,40 @@ def score_decisions(
         ]
         df["true_room"] = floorplan.room_at(Y[:, :2])
     return df
+
+
+def score_decisions(
+    decisions, odom_times, odom, gt_times, gt, floorplan=None, where: str = "<decisions>"
+) -> pd.DataFrame:
+    """Scores a decisions JSON-lines log (``decisions_frame`` + ``score_rows``)."""
+    return score_rows(decisions_frame(decisions), odom_times, odom, gt_times, gt, floorplan, where)
+
+
+def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> pd.DataFrame:
+    """Scores a decision table of a ``WindowBatch`` (``decision.driver.decide``'s frame).
+
+    Window ``k`` of run ``r`` is decided at the time of its last scan; every run is scored
+    against its recording's odometry and ground truth by ``score_rows``.
+
+    Args:
+        frame: rows with ``run``, ``k`` (1-based), ``x, y, yaw_deg``.
+        batch: the ``WindowBatch`` the decisions were made on.
+        recordings: the runs' ``Recording``s, in the batch's run order (with ``truth``).
+        rooms: add the placed and true room names.
+    """
+    parts = []
+    for r, g in frame.groupby("run", sort=True):
+        rec = recordings[int(r)]
+        if rec.truth is None:
+            raise DataError(f"{rec.name}: no ground truth to score against")
+        g = g.assign(t=batch.windows[int(r)].t[g["k"].to_numpy() - 1])
+        fp = rec.floorplan if rooms else None
+        parts.append(
+            score_rows(
+                g, rec.seq.times, rec.seq.odometry, rec.truth.times, rec.truth.poses, fp, rec.name
+            )
+        )
+    return pd.concat(parts) if parts else frame.iloc[:0]
 
 
 def summarize(scored: pd.DataFrame) -> dict:

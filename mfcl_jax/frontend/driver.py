@@ -1,0 +1,115 @@
+"""The one front-end driver: submaps of any number of buildings -> candidates.
+
+Every consumer (study, benchmark, ``mfcl localize``) registers through ``FrontEnd``. The
+floor plans' features are padded to ONE shape bucket (``registry.common_features``), so a
+single compilation serves every building; features are built per building on demand and
+dropped after use (hundreds of buildings never sit in memory at once). Submaps are registered
+in chunks of ``chunk`` submaps of one building per call: the building's features are shared by
+the chunk (no per-submap copy of the rasters), and the compiled function is reused for every
+chunk, building and run.
+"""
+
+from __future__ import annotations
+
+import time
+
+import jax
+import numpy as np
+
+from mfcl_jax.batch import Candidates, SubmapBatch, pad_submaps
+from mfcl_jax.frontend import registry
+
+__all__ = ["FrontEnd"]
+
+
+class FrontEnd:
+    """Registers submaps against a fixed list of floor plans.
+
+    Args:
+        floorplans: the ``Floorplan`` of every building (index = building id).
+        params: ``FrontendParams`` (static: a change recompiles).
+        chunk: submaps per compiled call (the robot streams with ``chunk=1``).
+
+    Attributes:
+        compile_s, run_s: seconds spent compiling and running so far (compile apart).
+    """
+
+    def __init__(self, floorplans, params: registry.FrontendParams | None = None, chunk=16):
+        self.floorplans = list(floorplans)
+        if not self.floorplans:
+            raise ValueError("FrontEnd: no floor plans given")
+        self.params = params or registry.FrontendParams()
+        self.chunk = int(chunk)
+        self._shape = registry.common_shape(self.floorplans)
+        self._fn = jax.jit(lambda sub, feats: registry.register(sub, feats, self.params))
+        self._compiled: dict = {}
+        self._feats: dict[int, registry.FloorplanFeatures] = {}
+        self.compile_s = 0.0
+        self.run_s = 0.0
+
+    def features(self, b: int) -> registry.FloorplanFeatures:
+        """Features of building ``b`` in the common bucket (cached until ``release``)."""
+        if b not in self._feats:
+            self._feats[b] = registry.build_features(
+                self.floorplans[b], self.params, **self._shape
+            )
+        return self._feats[b]
+
+    def release(self, b: int | None = None) -> None:
+        """Drops cached features (of building ``b``, or all)."""
+        if b is None:
+            self._feats.clear()
+        else:
+            self._feats.pop(b, None)
+
+    def _call(self, sub: SubmapBatch, feats) -> Candidates:
+        key = sub.points.shape
+        if key not in self._compiled:
+            t0 = time.perf_counter()
+            self._compiled[key] = self._fn.lower(sub, feats).compile()
+            self.compile_s += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(self._compiled[key](sub, feats))
+        self.run_s += time.perf_counter() - t0
+        return jax.tree.map(np.asarray, out)
+
+    def register(self, submaps: SubmapBatch, building, progress=None, keep=False) -> Candidates:
+        """Candidates of every submap.
+
+        Args:
+            submaps: host ``SubmapBatch`` (``N`` rows, any mix of buildings).
+            building: ``(N,)`` building index of each submap.
+            progress: optional callable ``progress(n_done)`` after every chunk.
+            keep: keep the features cached afterwards (streaming); else they are released.
+
+        Returns:
+            ``Candidates`` with leading axis ``N`` (host arrays), in the input order.
+        """
+        sub = registry.sanitize_submaps(jax.tree.map(np.asarray, submaps))
+        building = np.asarray(building, np.int64).reshape(-1)
+        n, J = sub.n, self.params.J
+        pose = np.zeros((n, J, 3), np.float32)
+        score = np.full((n, J), -np.inf, np.float32)
+        mask = np.zeros((n, J), bool)
+        reason = np.zeros(n, np.int32)
+        done = 0
+        for b in np.unique(building):
+            rows = np.flatnonzero(building == b)
+            feats = self.features(int(b))
+            for a in range(0, len(rows), self.chunk):
+                idx = rows[a : a + self.chunk]
+                part = jax.tree.map(lambda x, i=idx: np.asarray(x)[i], sub)
+                c = self._call(pad_submaps(part, n=self.chunk), feats)
+                k = len(idx)
+                pose[idx], score[idx], mask[idx], reason[idx] = (
+                    c.pose[:k],
+                    c.score[:k],
+                    c.mask[:k],
+                    c.reason[:k],
+                )
+                done += k
+                if progress is not None:
+                    progress(done)
+            if not keep:
+                self.release(int(b))
+        return Candidates(pose, score, mask, reason)

@@ -1,0 +1,300 @@
+"""Global search for rigid placements of a whole accumulated path in the floor plan.
+
+Given scans placed in one frame ``F`` (by odometry, or by any other poses), find the rigid
+motions ``g: F -> B`` under which the path explains the plan best, anywhere in the building,
+without a prior. It serves the scorer (alternative explanations of a run, from ground truth)
+and the decision layer (competitors of a commit, from odometry); it sees only the cloud and
+the plan.
+
+Two stages:
+
+1. Coarse, exhaustive: for every heading on a ``yaw_step_deg`` grid, the rotated cloud is
+   splatted into an image at ``coarse_res`` and cross-correlated (FFT) with two plan fields:
+   a wall-proximity field ``exp(-d^2 / 2 sigma^2)`` (``d``: distance to the nearest wall
+   solid, block-minimum) rewarding points, and an obstacle field (share of wall or
+   out-of-building cells) penalising ray samples and sensor positions. Every translation of
+   every heading is scored at once; local maxima per heading are kept.
+2. Fine, local: the best coarse peaks (after suppressing near-duplicates) are polished by two
+   rounds of local grid search on the fine rasters (bilinear lookups, ``sigma_fine``).
+
+Scores are means: ``hit`` (mean wall proximity of the points) minus ``lam`` times ``bad`` (the
+mean obstacle value of ray samples and sensor positions), so clutter that the plan lacks is
+neither rewarded nor punished, while a placement that puts the robot in a wall or its rays
+through walls is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+
+__all__ = ["SearchParams", "PlanFields", "plan_fields", "search", "evaluate_placements"]
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    """Static settings of the search (a change recompiles)."""
+
+    coarse_res: float = 0.35
+    sigma_coarse: float = 0.45
+    yaw_step_deg: float = 4.0
+    peaks_per_yaw: int = 6
+    n_peaks: int = 32  # coarse peaks polished
+    n_out: int = 12  # placements returned
+    sigma_fine: float = 0.12
+    lam: float = 1.0
+    nms_xy: float = 1.0
+    nms_deg: float = 6.0
+
+
+@dataclass(frozen=True)
+class PlanFields:
+    """The plan as the search reads it (pytree; padded to a bucket for shared compilation).
+
+    Attributes:
+        origin: ``(2,)`` fine grid lower-left corner (m); res: fine cell (m, static).
+        dist: ``(H, W)`` distance to the nearest wall solid (m), for ray marching.
+        hit: ``(H, W)`` fine wall-proximity field at ``sigma_fine``.
+        bad: ``(H, W)`` fine obstacle field (1 in walls and outside the building).
+        c_hit, c_bad: ``(Hc, Wc)`` the coarse fields; c_res: their cell (m, static): the fine
+            cell times the block factor nearest to ``coarse_res``.
+    """
+
+    origin: jax.Array
+    dist: jax.Array
+    hit: jax.Array
+    bad: jax.Array
+    c_hit: jax.Array
+    c_bad: jax.Array
+    res: float = 0.10
+    c_res: float = 0.40
+
+
+jax.tree_util.register_dataclass(
+    PlanFields,
+    data_fields=["origin", "dist", "hit", "bad", "c_hit", "c_bad"],
+    meta_fields=["res", "c_res"],
+)
+
+
+def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> PlanFields:
+    """``PlanFields`` from ``Rasters`` (host); ``shape`` pads the fine grid to a bucket."""
+    r = rasters.to_numpy()
+    dist = np.asarray(r.dist, np.float64)
+    bad = (np.asarray(r.wall) | ~np.asarray(r.inside)).astype(np.float64)
+    h, w = dist.shape
+    H, W = shape or (h, w)
+    f = max(1, int(round(params.coarse_res / r.res)))
+    H, W = -(-H // f) * f, -(-W // f) * f
+    dist = np.pad(dist, ((0, H - h), (0, W - w)), constant_values=10.0)
+    bad = np.pad(bad, ((0, H - h), (0, W - w)), constant_values=1.0)
+    c_d = dist.reshape(H // f, f, W // f, f).min(axis=(1, 3))
+    c_b = bad.reshape(H // f, f, W // f, f).mean(axis=(1, 3))
+    return PlanFields(
+        origin=np.asarray(r.origin, np.float32),
+        dist=dist.astype(np.float32),
+        hit=np.exp(-(dist**2) / (2 * params.sigma_fine**2)).astype(np.float32),
+        bad=bad.astype(np.float32),
+        c_hit=np.exp(-(c_d**2) / (2 * params.sigma_coarse**2)).astype(np.float32),
+        c_bad=c_b.astype(np.float32),
+        res=float(r.res),
+        c_res=float(r.res * f),
+    )
+
+
+def _bilinear(field, origin, res, xy, fill):
+    u = (xy[..., 0] - origin[0]) / res - 0.5
+    v = (xy[..., 1] - origin[1]) / res - 0.5
+    h, w = field.shape
+    u0, v0 = jnp.floor(u), jnp.floor(v)
+    fu, fv = u - u0, v - v0
+    u0, v0 = u0.astype(jnp.int32), v0.astype(jnp.int32)
+
+    def at(iv, iu):
+        ok = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
+        val = field.reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
+        return jnp.where(ok, val, fill)
+
+    return (
+        at(v0, u0) * (1 - fu) * (1 - fv)
+        + at(v0, u0 + 1) * fu * (1 - fv)
+        + at(v0 + 1, u0) * (1 - fu) * fv
+        + at(v0 + 1, u0 + 1) * fu * fv
+    )
+
+
+def _score(g, pts, pok, frees, fok, fields, lam):
+    """Fine score of placement ``g (3,)``: mean hit of points minus ``lam`` mean bad."""
+    hit = _bilinear(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
+    bad = _bilinear(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
+    mh = jnp.sum(jnp.where(pok, hit, 0.0)) / jnp.maximum(jnp.sum(pok), 1)
+    mb = jnp.sum(jnp.where(fok, bad, 0.0)) / jnp.maximum(jnp.sum(fok), 1)
+    return mh - lam * mb
+
+
+def _splat(xy, ok, n, res, half):
+    """Bilinear splat of points ``xy (M, 2)`` (centred) into an ``(n, n)`` image."""
+    u = (xy[:, 0] + half) / res - 0.5
+    v = (xy[:, 1] + half) / res - 0.5
+    u0, v0 = jnp.floor(u), jnp.floor(v)
+    fu, fv = u - u0, v - v0
+    u0, v0 = u0.astype(jnp.int32), v0.astype(jnp.int32)
+    img = jnp.zeros((n * n,), jnp.float32)
+    for du, dv, wgt in ((0, 0, (1 - fu) * (1 - fv)), (1, 0, fu * (1 - fv)), (0, 1, (1 - fu) * fv),
+                        (1, 1, fu * fv)):  # fmt: skip
+        iu, iv = u0 + du, v0 + dv
+        good = ok & (iu >= 0) & (iu < n) & (iv >= 0) & (iv < n)
+        img = img.at[jnp.where(good, iv * n + iu, 0)].add(jnp.where(good, wgt, 0.0))
+    return img.reshape(n, n)
+
+
+def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
+    """Best ``peaks_per_yaw`` coarse placements per heading: ``(Y * P, 3)`` and scores."""
+    res = fields.c_res
+    half = n_img * res / 2
+    hc, wc = fields.c_hit.shape
+    fh, fw = hc + n_img, wc + n_img
+    F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw))
+    F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw))
+    npts = jnp.maximum(jnp.sum(pok), 1)
+    nfree = jnp.maximum(jnp.sum(fok), 1)
+    c_origin = fields.origin  # coarse grid shares the fine origin
+    yaws = jnp.deg2rad(jnp.arange(0.0, 360.0, p.yaw_step_deg))
+
+    def one(th):
+        R = jnp.asarray([[jnp.cos(th), -jnp.sin(th)], [jnp.sin(th), jnp.cos(th)]])
+        img_p = _splat(pts @ R.T, pok, n_img, res, half)
+        img_f = _splat(frees @ R.T, fok, n_img, res, half)
+        # score[s] = sum_u img[u] field[u + s]; s = -(n-1) .. hc-1, stored modulo fh / fw.
+        cor_h = jnp.fft.irfft2(F_hit * jnp.conj(jnp.fft.rfft2(img_p, (fh, fw))), (fh, fw))
+        cor_b = jnp.fft.irfft2(F_bad * jnp.conj(jnp.fft.rfft2(img_f, (fh, fw))), (fh, fw))
+        sc = cor_h / npts - p.lam * cor_b / nfree
+        # Shifts that move the cloud's centre outside the plan grid are not placements.
+        sy = jnp.where(jnp.arange(fh) < hc, jnp.arange(fh), jnp.arange(fh) - fh)
+        sx = jnp.where(jnp.arange(fw) < wc, jnp.arange(fw), jnp.arange(fw) - fw)
+        cy = sy[:, None] + n_img / 2
+        cx = sx[None, :] + n_img / 2
+        inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
+        sc = jnp.where(inside, sc, -jnp.inf)
+        pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
+        peak = jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1)
+        val, idx = jax.lax.top_k(peak, p.peaks_per_yaw)
+        iy, ix = idx // fw, idx % fw
+        tx = c_origin[0] + half + sx[ix] * res
+        ty = c_origin[1] + half + sy[iy] * res
+        return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1), val
+
+    poses, vals = jax.lax.map(one, yaws)
+    return poses.reshape(-1, 3), vals.reshape(-1)
+
+
+def _polish(g, pts, pok, frees, fok, fields, lam, step_xy, step_yaw, n):
+    """Local grid search (``(2n+1)^3`` placements) around ``g``; returns the best."""
+    d = jnp.arange(-n, n + 1, dtype=jnp.float32)
+    dx, dy, dt = jnp.meshgrid(d * step_xy, d * step_xy, d * step_yaw, indexing="ij")
+    cand = g + jnp.stack([dx.ravel(), dy.ravel(), dt.ravel()], -1)
+    sc = jax.vmap(lambda c: _score(c, pts, pok, frees, fok, fields, lam))(cand)
+    i = jnp.argmax(sc)
+    return cand[i], sc[i]
+
+
+def _nms(poses, vals, n, nms_xy, nms_rad):
+    """Greedy suppression: the ``n`` best placements, pairwise at least (nms_xy or nms_rad)."""
+    order = jnp.argsort(-vals)
+    poses, vals = poses[order], vals[order]
+
+    def body(i, keep):
+        dxy, dth = se2.distance_pair(poses, poses[i])
+        close = (dxy < nms_xy) & (dth < nms_rad) & (jnp.arange(len(vals)) < i) & keep
+        return keep.at[i].set(keep[i] & ~jnp.any(close))
+
+    keep = jax.lax.fori_loop(0, len(vals), body, jnp.isfinite(vals))
+    sel = jnp.argsort(jnp.where(keep, -vals, jnp.inf))[:n]
+    return poses[sel], jnp.where(keep[sel], vals[sel], -jnp.inf)
+
+
+@partial(jax.jit, static_argnames=("p", "n_img"))
+def search(pts, pok, frees, fok, fields: PlanFields, p: SearchParams, n_img: int):
+    """Best rigid placements of a cloud in the plan.
+
+    Args:
+        pts: ``(M, 2)`` points of the accumulated path in frame ``F``, CENTRED (subtract the
+            cloud centre ``c`` first; a placement ``g`` then maps ``x - c`` into B).
+        pok: ``(M,)`` bool.
+        frees: ``(Q, 2)`` free-space samples (ray samples and sensor positions), centred alike.
+        fok: ``(Q,)`` bool.
+        fields: ``PlanFields``.
+        p: ``SearchParams`` (static).
+        n_img: static cloud image side (cells of ``fields.c_res``), covering the cloud's extent.
+
+    Returns:
+        ``(poses (n_out, 3), scores (n_out,))``: placements of the centred cloud, best first
+        (``-inf`` scores where fewer distinct placements exist).
+    """
+    poses, vals = _coarse(pts, pok, frees, fok, fields, p, n_img)
+    poses, vals = _nms(poses, vals, p.n_peaks, p.nms_xy, math.radians(p.nms_deg))
+
+    def polish(g):
+        g, _ = _polish(g, pts, pok, frees, fok, fields, p.lam, 0.12, math.radians(1.2), 2)
+        return _polish(g, pts, pok, frees, fok, fields, p.lam, 0.04, math.radians(0.4), 1)
+
+    poses, sc = jax.vmap(polish)(poses)
+    sc = jnp.where(jnp.isfinite(vals), sc, -jnp.inf)
+    return _nms(poses, sc, p.n_out, 0.5, math.radians(3.0))
+
+
+def _through(o, pts, ok, fields, margin, steps):
+    """Whether each ray ``o -> pts`` meets a plan wall more than ``margin`` m before its end
+    (sphere tracing on the distance field: a measured return from behind a solid wall)."""
+    d = pts - o
+    r = jnp.linalg.norm(d, axis=-1)
+    u = d / jnp.maximum(r, 1e-6)[..., None]
+
+    def body(_, carry):
+        t, hit = carry
+        x = o + t[..., None] * u
+        dd = _bilinear(fields.dist, fields.origin, fields.res, x, 10.0)
+        hit = hit | ((dd < 0.02) & (t < r - margin))
+        return t + jnp.maximum(dd, 0.04), hit
+
+    t0 = jnp.full(r.shape, 0.05, r.dtype)
+    _, hit = jax.lax.fori_loop(0, steps, body, (t0, jnp.zeros(r.shape, bool)))
+    return hit & ok
+
+
+@partial(jax.jit, static_argnames=("steps",))
+def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin=0.5, steps=40):
+    """Per-scan statistics of placements.
+
+    Args:
+        g: ``(G, 3)`` placements of frame ``F`` into B.
+        scan_pts: ``(S, B, 2)`` scan points in ``F``; scan_ok: ``(S, B)``.
+        sensor: ``(S, 2)`` sensor positions in ``F``.
+        fields: ``PlanFields``.
+        margin: a ray meeting a wall this far (m) before its end point passes through it.
+        steps: sphere-tracing iterations (static).
+
+    Returns:
+        ``(hit (G, S), through (G, S), pose_bad (G, S))``: mean wall proximity of each scan's
+        points, the share of its rays that pass through plan walls, and the obstacle value
+        (wall or outside the building) at the sensor position, under each placement.
+    """
+
+    def one(gi):
+        p = se2.apply(gi, scan_pts)
+        o = se2.apply(gi, sensor[:, None, :])  # (S, 1, 2)
+        h = _bilinear(fields.hit, fields.origin, fields.res, p, 0.0)
+        n = jnp.maximum(jnp.sum(scan_ok, -1), 1)
+        mh = jnp.sum(jnp.where(scan_ok, h, 0.0), -1) / n
+        th = jnp.sum(_through(o, p, scan_ok, fields, margin, steps), -1) / n
+        pb = _bilinear(fields.bad, fields.origin, fields.res, o[:, 0], 1.0)
+        return mh, th, pb
+
+    return jax.lax.map(one, g)

@@ -1,0 +1,192 @@
+"""Labels from geometry: is a run's true anchor identifiable from what the robot saw?
+
+Ground truth only (this module is part of the scorer; no system under test sees its output).
+
+A run is NOT identifiable at window ``k`` when another rigid placement of the path explains
+every scan seen so far about as well as the true one. Procedure, per run:
+
+1. the keyframe scans up to the end of window ``k`` are placed in the floor plan by their TRUE
+   poses (a drift-free path cloud), with free-space samples along each ray and the sensor
+   positions;
+2. a global search (``frontend.path_search``) over all rigid placements of that cloud, at a
+   few prefixes (windows 1, 2, 4, 8, ... and the last), collects candidate alternatives;
+   a candidate that moves no pose of the prefix by more than ``CORRECT_XY`` m and turns it by
+   less than ``CORRECT_YAW_DEG`` is the truth itself, not an alternative;
+3. every scan is scored under the truth and under each alternative, by ray casting in the
+   plan: the mean wall proximity of its points (``hit``), the share of its rays that pass
+   through a plan wall before their return (``through``: the robot saw through a wall), and
+   whether the robot stands in a wall or outside the building. A scan CONTRADICTS an
+   alternative when ``hit`` drops by more than ``drop_hit``, ``through`` rises by more than
+   ``rise_through`` (both smoothed over ``smooth`` consecutive keyframes so one noisy scan
+   does not decide) or the robot stands in a wall or outside under it but not under the
+   truth;
+4. window ``k`` is identifiable iff every alternative is contradicted by some scan up to it.
+   The run is identifiable iff its last window is; its oracle window is the first window from
+   which every later window is identifiable.
+
+The thresholds are fixed once for every building and log (``LabelParams``); they are a
+statement of what "about as well" means, not a knob of any system.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.frontend import path_search as ps
+from mfcl_jax.score.decisions import pose_at
+from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
+
+__all__ = ["LabelParams", "RunLabel", "label_runs"]
+
+
+@dataclass(frozen=True)
+class LabelParams:
+    """What "explains every scan about as well" means (fixed once)."""
+
+    beams: int = 128  # rays per scan used (evenly over the valid returns)
+    ray_fracs: tuple = (0.3, 0.6, 0.85)  # free samples along each ray (coarse search only)
+    search_points: int = 3072
+    search_free: int = 2048
+    drop_hit: float = 0.12
+    rise_through: float = 0.03
+    smooth: int = 3
+    search: ps.SearchParams = ps.SearchParams()
+
+
+@dataclass(frozen=True)
+class RunLabel:
+    """Label of one run (ground truth only)."""
+
+    identifiable: bool
+    oracle_k: int | None  # 1-based; None when not identifiable at the last window
+    identifiable_k: np.ndarray  # (K,) bool per window
+    n_alternatives: int  # uncontradicted alternatives at the last window
+    alternative: tuple | None  # the strongest uncontradicted alternative g (B -> B) at the end
+
+
+def _scan_arrays(seq, kf, truth, p: LabelParams):
+    """Per keyframe: points, free samples in B (true poses), and the true poses."""
+    P = pose_at(truth.times, truth.poses, np.asarray(seq.times)[kf], "labels")
+    S, nb, nf = len(kf), p.beams, p.beams * len(p.ray_fracs) + 1
+    pts = np.zeros((S, nb, 2), np.float32)
+    pok = np.zeros((S, nb), bool)
+    free = np.zeros((S, nf, 2), np.float32)
+    fok = np.zeros((S, nf), bool)
+    for i, j in enumerate(kf):
+        s = np.asarray(seq.scans[j], np.float64).reshape(-1, 2)
+        s = s[np.all(np.isfinite(s), 1)]
+        if len(s) == 0:
+            free[i, 0], fok[i, 0] = P[i, :2], True
+            continue
+        s = s[np.linspace(0, len(s) - 1, min(nb, len(s))).round().astype(int)]
+        w = np.asarray(se2.apply(P[i], s), np.float64)
+        pts[i, : len(w)], pok[i, : len(w)] = w, True
+        q = P[i, :2] + np.asarray(p.ray_fracs)[:, None, None] * (w - P[i, :2])[None]
+        q = np.concatenate([P[i, None, :2], q.reshape(-1, 2)])
+        free[i, : len(q)], fok[i, : len(q)] = q, True
+    return pts, pok, free, fok, P
+
+
+def _subsample(a, ok, n, rng):
+    idx = np.flatnonzero(ok.reshape(-1))
+    if len(idx) > n:
+        idx = np.sort(rng.choice(idx, n, replace=False))
+    out = np.zeros((n, 2), np.float32)
+    m = np.zeros(n, bool)
+    out[: len(idx)], m[: len(idx)] = a.reshape(-1, 2)[idx], True
+    return out, m
+
+
+def _prefixes(K: int) -> list[int]:
+    ks, k = [], 1
+    while k < K:
+        ks.append(k)
+        k *= 2
+    return ks + [K]
+
+
+def _dedupe(G, xy: float = 0.3, deg: float = 2.0):
+    """Drops placements within (``xy`` m, ``deg``) of an earlier one (row 0, the truth, stays)."""
+    keep = []
+    for g in G:
+        if all(
+            np.hypot(*(g[:2] - k[:2])) > xy or abs(se2.wrap(g[2] - k[2])) > np.deg2rad(deg)
+            for k in keep
+        ):
+            keep.append(g)
+    return np.asarray(keep, np.float64)
+
+
+def _smooth(x, n):
+    if n <= 1:
+        return x
+    ker = np.ones(n) / n
+    pad = np.pad(x, [(0, 0), (n // 2, n - 1 - n // 2)], mode="edge")
+    return np.stack([np.convolve(r, ker, mode="valid") for r in pad])
+
+
+def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), seed: int = 0):
+    """Labels every run.
+
+    Args:
+        recordings: ``Recording``s with ground truth.
+        windows: their ``windows.Windows`` (the keyframes and window ends the systems used).
+        fields_of: callable ``recording -> PlanFields`` (so callers can share padded fields
+            per building and bucket).
+        p: ``LabelParams``.
+
+    Returns:
+        One ``RunLabel`` per run.
+    """
+    rng = np.random.default_rng(seed)
+    out = []
+    for rec, w in zip(recordings, windows, strict=True):
+        K = len(w)
+        if K == 0:
+            out.append(RunLabel(False, None, np.zeros(0, bool), 0, None))
+            continue
+        fields = fields_of(rec)
+        pts, pok, free, fok, P = _scan_arrays(rec.seq, w.keyframes, rec.truth, p)
+        ends = w.bounds[:, 1]
+        cands = []
+        for k in _prefixes(K):
+            e = ends[k - 1] + 1
+            cp, cm = _subsample(pts[:e], pok[:e], p.search_points, rng)
+            cf, cfm = _subsample(free[:e], fok[:e], p.search_free, rng)
+            c = cp[cm].mean(0) if cm.any() else P[0, :2]
+            ext = float(np.max(np.abs(np.concatenate([cp[cm], cf[cfm]]) - c))) if cm.any() else 1
+            n_img = int(-(-(2 * ext + 2) / fields.c_res // 32) * 32)
+            g, sc = ps.search(cp - c, cm, cf - c, cfm, fields, p.search, n_img)
+            g, sc = np.asarray(g, np.float64), np.asarray(sc)
+            shift = np.array([-c[0], -c[1], 0.0])
+            for gi in g[np.isfinite(sc)]:
+                cands.append(np.asarray(se2.compose(gi, shift), np.float64))
+        G = _dedupe(np.concatenate([np.zeros((1, 3)), np.asarray(cands).reshape(-1, 3)]))
+        hit, thr, pb = (np.asarray(a, np.float64) for a in ps.evaluate_placements(
+            jnp.asarray(G, jnp.float32), pts, pok, P[:, :2], fields))  # fmt: skip
+        hit, thr = _smooth(hit, p.smooth), _smooth(thr, p.smooth)
+        worse = (
+            (hit[1:] < hit[:1] - p.drop_hit)
+            | (thr[1:] > thr[:1] + p.rise_through)
+            | ((pb[1:] >= 0.5) & (pb[:1] < 0.5))
+        )  # (A, S)
+        contradicted = np.maximum.accumulate(worse, axis=1)  # by some scan so far
+        moved = np.asarray(se2.compose(G[1:, None, :], P[None]), np.float64)  # (A, S, 3)
+        dxy = np.hypot(*(moved[..., :2] - P[None, :, :2]).transpose(2, 0, 1))
+        far = np.maximum.accumulate(dxy, axis=1) > CORRECT_XY
+        turned = np.abs(se2.wrap(G[1:, 2]))[:, None] > np.deg2rad(CORRECT_YAW_DEG)
+        alt = (far | turned) & ~contradicted  # (A, S): a live alternative after scan s
+        ident = ~np.any(alt[:, ends], axis=0)  # (K,)
+        later = np.minimum.accumulate(ident[::-1])[::-1]
+        oracle = int(np.argmax(later)) + 1 if later[-1] else None
+        live = np.flatnonzero(alt[:, ends[-1]])
+        best = None
+        if len(live):
+            gap = hit[0, : ends[-1] + 1].mean() - hit[1 + live, : ends[-1] + 1].mean(1)
+            best = tuple(float(v) for v in G[1 + live[int(np.argmin(gap))]])
+        out.append(RunLabel(bool(ident[-1]), oracle, ident, int(len(live)), best))
+    return out

@@ -1,0 +1,161 @@
+"""Simulated recordings: a planar LiDAR walked through a scene (built-in, procedural or a
+loaded floor plan with waypoints).
+
+``simulate`` samples the true scan poses of every (trajectory, seed) pair, derives drifting
+odometry for all of them in one jitted call, and ray casts every scan of every pair in ONE
+jitted call. The result is one ``Recording`` per pair, cut into windows later like any other
+input (``mfcl_jax.windows``). Everything is a pure function of the seeds: JAX keys are derived
+from the seed and the scene / trajectory names (crc32, stable across processes).
+
+An odometry restart (``SimParams.restart_at``) re-zeroes the odometry at that fraction of the
+path, as an LIO that is restarted does: the odometry frame after it is unrelated to the one
+before it.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.batch import bucket
+from mfcl_jax.io.errors import DataError
+from mfcl_jax.sim import SimParams
+from mfcl_jax.sim.raycast import cast, scan_points
+from mfcl_jax.sim.trajectory import odometry, sample_path
+from mfcl_jax.sources.recording import GroundTruth, Recording
+from mfcl_jax.sources.sequence import ScanSequence
+
+__all__ = ["simulate", "simulate_walk", "run_key"]
+
+
+def run_key(seed: int, scene: str, traj: str) -> jax.Array:
+    """The PRNG key of one (scene, trajectory, seed) run."""
+    tag = zlib.crc32(f"{scene}/{traj}".encode()) & 0x7FFFFFFF
+    return jax.random.fold_in(jax.random.PRNGKey(int(seed)), tag)
+
+
+@jax.jit
+def _odometry_batch(true_poses, anchors, noise, drift_xy, drift_yaw):
+    return jax.vmap(odometry, in_axes=(0, 0, 0, None, None))(
+        true_poses, anchors, noise, drift_xy, drift_yaw
+    )
+
+
+def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
+    a = np.asarray(a)
+    if len(a) >= n:
+        return a[:n]
+    return np.concatenate([a, np.repeat(a[-1:], n - len(a), axis=0)])
+
+
+def _restart(odo: np.ndarray, at: float | None) -> np.ndarray:
+    """Odometry re-zeroed at fraction ``at`` of the samples (``None``: unchanged)."""
+    if at is None:
+        return odo
+    r = int(round(at * (len(odo) - 1)))
+    if r <= 0:
+        return odo
+    out = odo.copy()
+    out[r:] = np.asarray(se2.between(odo[r], odo[r:]), np.float64)
+    return out
+
+
+def simulate(
+    scene, trajectory_names=None, seeds=(0,), params: SimParams | None = None, segments=None
+) -> list[Recording]:
+    """One ``Recording`` per (trajectory, seed) of a scene (trajectory-major order).
+
+    Args:
+        scene: a ``Scene`` or a registered scene name.
+        trajectory_names: names in ``scene.trajectories`` (default: all, in order).
+        seeds: integer seeds; a seed fixes LiDAR noise / dropout and odometry drift.
+        params: ``SimParams`` (defaults if None).
+        segments: surfaces the LiDAR sees (default ``scene.segments``: as built + clutter).
+
+    Returns:
+        Recordings named ``"{scene}/{trajectory}/s{seed}"`` with ground truth; ``meta`` holds
+        ``scene``, ``trajectory``, ``seed``, ``length_m``.
+    """
+    from mfcl_jax.floorplan.scenes import Scene, get_scene
+
+    params = SimParams() if params is None else params
+    scene = get_scene(scene) if isinstance(scene, str) else scene
+    if not isinstance(scene, Scene):
+        raise TypeError(f"simulate: scene must be a Scene or a name, got {type(scene).__name__}")
+    names = list(scene.trajectories) if trajectory_names is None else list(trajectory_names)
+    for n in names:
+        if n not in scene.trajectories:
+            raise KeyError(
+                f"scene {scene.name!r} has no trajectory {n!r}; it has {sorted(scene.trajectories)}"
+            )
+    seeds = [int(s) for s in seeds]
+    if not names or not seeds:
+        raise ValueError(f"simulate needs a trajectory and a seed; got {names=}, {seeds=}")
+    segs = np.asarray(scene.segments if segments is None else segments, np.float64)
+    if len(segs) == 0:
+        raise DataError(f"{scene.name}: no surfaces to simulate a LiDAR against")
+
+    paths = {n: sample_path(scene.trajectories[n], params.trajectory) for n in names}
+    pairs = [(n, s) for n in names for s in seeds]
+    t_max = max(len(paths[n].poses) for n in names)
+    true_pad = np.stack([_pad_rows(paths[n].poses, t_max) for n, _ in pairs])
+    keys = [run_key(s, scene.name, n) for n, s in pairs]
+    if params.anchor is None:
+        anchors = true_pad[:, 0]
+    else:
+        anchors = np.broadcast_to(np.asarray(params.anchor, np.float64), (len(pairs), 3))
+    noise = jnp.stack([jax.random.normal(jax.random.fold_in(k, 1), (t_max, 3)) for k in keys])
+    tp = params.trajectory
+    odo = np.asarray(
+        _odometry_batch(
+            jnp.asarray(true_pad, jnp.float32),
+            jnp.asarray(anchors, jnp.float32),
+            noise,
+            jnp.float32(tp.drift_xy),
+            jnp.float32(np.deg2rad(tp.drift_yaw_deg_per_m)),
+        ),
+        np.float64,
+    )
+
+    counts = [len(paths[n].poses) for n, _ in pairs]
+    all_poses = np.concatenate([paths[n].poses for n, _ in pairs])
+    all_keys = jnp.concatenate(
+        [
+            jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(k, 0), jnp.arange(c))
+            for k, c in zip(keys, counts, strict=True)
+        ]
+    )
+    n_scan = len(all_poses)
+    s_cap = bucket(n_scan, minimum=256)
+    m_cap = bucket(len(segs), minimum=64)
+    seg_pad = np.zeros((m_cap, 2, 2))
+    seg_pad[: len(segs)] = segs
+    seg_valid = np.arange(m_cap) < len(segs)
+    keys_pad = jnp.concatenate([all_keys, jnp.zeros((s_cap - n_scan, 2), all_keys.dtype)])
+    ranges = cast(_pad_rows(all_poses, s_cap), seg_pad, params.lidar, keys_pad, seg_valid)
+    pts = np.asarray(scan_points(ranges), np.float64)[:n_scan]
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+
+    out = []
+    for i, (n, s) in enumerate(pairs):
+        c = counts[i]
+        scans = [p[np.all(np.isfinite(p), 1)] for p in pts[offsets[i] : offsets[i] + c]]
+        name = f"{scene.name}/{n}/s{s}"
+        path = paths[n]
+        seq = ScanSequence(path.t, scans, _restart(odo[i, :c], params.restart_at), name)
+        meta = dict(scene=scene.name, trajectory=n, seed=s, length_m=float(path.s[-1]))
+        out.append(Recording(name, scene.floorplan, seq, GroundTruth(path.t, path.poses), meta))
+    return out
+
+
+def simulate_walk(floorplan, waypoints, seed: int = 0, params: SimParams | None = None, tag="walk"):
+    """A ``Recording`` of a LiDAR walk along ``waypoints`` through a loaded floor plan (the
+    LiDAR sees the plan's wall faces only)."""
+    from mfcl_jax.floorplan.scenes import Scene
+
+    scene = Scene(floorplan.name or "plan", floorplan, np.zeros((0, 2, 2)), {tag: waypoints})
+    return simulate(scene, [tag], [seed], params)[0]

@@ -39,6 +39,7 @@ __all__ = [
     "cut",
     "pack",
     "rethinned",
+    "concat",
 ]
 
 
@@ -322,3 +323,63 @@ def rethinned(w: Windows) -> np.ndarray:
     """``(K,)`` bool: windows thinned with a coarser voxel than configured."""
     return w.voxel > w.params.voxel * (1 + 1e-9)
 
+
+def concat(batches) -> WindowBatch:
+    """Joins ``WindowBatch``es into one WITHOUT their points (what the decision layer and the
+    scorer need: odometry, windows, building indices); runs and submaps are re-indexed in
+    order. ``Windows`` lose their point lists too."""
+    batches = list(batches)
+    n = sum(b.submaps.n for b in batches)
+    T = max(int(b.runs.traj.shape[1]) for b in batches)
+    K = max(int(b.runs.window_mask.shape[1]) for b in batches)
+
+    def pad(a, axis, size, value):
+        a = np.asarray(a)
+        width = [(0, 0)] * a.ndim
+        width[axis] = (0, size - a.shape[axis])
+        return np.pad(a, width, constant_values=value)
+
+    subs, runs, off_r, off_n = [], [], 0, 0
+    for b in batches:
+        s, r = b.submaps, b.runs
+        subs.append(
+            (np.asarray(s.X), np.asarray(s.run) + off_r, np.asarray(s.window), np.asarray(s.t))
+        )
+        runs.append(
+            (
+                pad(r.traj, 1, T, 0.0),
+                pad(r.traj_t, 1, T, np.nan),
+                pad(r.traj_mask, 1, T, False),
+                pad(r.window_end, 1, K, 0),
+                pad(r.window_mask, 1, K, False),
+                pad(
+                    np.where(np.asarray(r.submap) >= 0, np.asarray(r.submap) + off_n, -1), 1, K, -1
+                ),
+            )
+        )
+        off_r += r.n_runs
+        off_n += s.n
+    X, run, window, t = (np.concatenate(c) for c in zip(*subs, strict=True))
+    sub = SubmapBatch(
+        np.zeros((n, 0, 2), np.float32),
+        np.zeros((n, 0, 2), np.float32),
+        np.zeros((n, 0), bool),
+        X,
+        run.astype(np.int32),
+        window,
+        t,
+        np.zeros(n, np.int32),
+    )
+    rb = RunBatch(*(np.concatenate(c) for c in zip(*runs, strict=True)))
+    light = [
+        Windows(w.keyframes, w.bounds, [], [], w.voxel, w.X, w.t, w.params)
+        for b in batches
+        for w in b.windows
+    ]
+    return WindowBatch(
+        sub,
+        rb,
+        np.concatenate([b.building for b in batches]),
+        np.concatenate([b.run_building for b in batches]),
+        light,
+    )

@@ -1,12 +1,13 @@
 """The one front-end driver: submaps of any number of buildings -> candidates.
 
-Every consumer (study, benchmark, ``mfcl localize``) registers through ``FrontEnd``. The
-floor plans' features are padded to ONE shape bucket (``registry.common_features``), so a
-single compilation serves every building; features are built per building on demand and
-dropped after use (hundreds of buildings never sit in memory at once). Submaps are registered
-in chunks of ``chunk`` submaps of one building per call: the building's features are shared by
-the chunk (no per-submap copy of the rasters), and the compiled function is reused for every
-chunk, building and run.
+Every consumer (study, benchmark, ``mfcl localize``) registers through ``FrontEnd``. A
+building's features are padded to a shape bucket (raster sides rounded up to ``multiple``
+cells, room and corner capacities to powers of two), so buildings of similar size share one
+compilation; features are built per building on demand and dropped after use (hundreds of
+buildings never sit in memory at once). Submaps are registered in chunks of ``chunk`` submaps
+of one building per call: the building's features are shared by the chunk (no per-submap copy
+of the rasters), and each compiled function is reused for every chunk, building and run of its
+bucket.
 """
 
 from __future__ import annotations
@@ -22,6 +23,13 @@ from mfcl_jax.frontend import registry
 __all__ = ["FrontEnd"]
 
 
+def _pow2(n: int, minimum: int) -> int:
+    out = minimum
+    while out < n:
+        out *= 2
+    return out
+
+
 class FrontEnd:
     """Registers submaps against a fixed list of floor plans.
 
@@ -34,25 +42,31 @@ class FrontEnd:
         compile_s, run_s: seconds spent compiling and running so far (compile apart).
     """
 
-    def __init__(self, floorplans, params: registry.FrontendParams | None = None, chunk=16):
+    def __init__(
+        self, floorplans=(), params: registry.FrontendParams | None = None, chunk=16, multiple=128
+    ):
         self.floorplans = list(floorplans)
-        if not self.floorplans:
-            raise ValueError("FrontEnd: no floor plans given")
         self.params = params or registry.FrontendParams()
         self.chunk = int(chunk)
-        self._shape = registry.common_shape(self.floorplans)
+        self.multiple = int(multiple)
         self._fn = jax.jit(lambda sub, feats: registry.register(sub, feats, self.params))
         self._compiled: dict = {}
         self._feats: dict[int, registry.FloorplanFeatures] = {}
         self.compile_s = 0.0
         self.run_s = 0.0
 
+    def add(self, floorplan) -> int:
+        """Adds a building; returns its index."""
+        self.floorplans.append(floorplan)
+        return len(self.floorplans) - 1
+
     def features(self, b: int) -> registry.FloorplanFeatures:
-        """Features of building ``b`` in the common bucket (cached until ``release``)."""
+        """Features of building ``b`` in its shape bucket (cached until ``release``)."""
         if b not in self._feats:
-            self._feats[b] = registry.build_features(
-                self.floorplans[b], self.params, **self._shape
-            )
+            kw = registry.common_shape([self.floorplans[b]], multiple=self.multiple)
+            kw["n_rooms"] = _pow2(kw["n_rooms"], 8)
+            kw["corner_capacity"] = _pow2(kw["corner_capacity"], 64)
+            self._feats[b] = registry.build_features(self.floorplans[b], self.params, **kw)
         return self._feats[b]
 
     def release(self, b: int | None = None) -> None:
@@ -63,7 +77,7 @@ class FrontEnd:
             self._feats.pop(b, None)
 
     def _call(self, sub: SubmapBatch, feats) -> Candidates:
-        key = sub.points.shape
+        key = (sub.points.shape, feats.sdf4.shape, feats.corner_pos.shape, feats.rasters.n_rooms)
         if key not in self._compiled:
             t0 = time.perf_counter()
             self._compiled[key] = self._fn.lower(sub, feats).compile()

@@ -3,18 +3,18 @@ scoring against ground truth; simulated datasets; occupancy maps from logs; real
 
 from mfcl_jax.pipeline.localize import LocalizeParams, Localizer, WindowResult, localize
 from mfcl_jax.pipeline.score import format_table, pose_at, score_decisions, summarize
+from mfcl_jax.pipeline.simdata import (
+    check_waypoints,
+    read_waypoints,
+    simulate_dataset,
+    simulate_scans,
+)
 from mfcl_jax.sources.sequence import (
     ScanSequence,
     from_bag,
     from_carmen,
     from_dataset,
     keyframes,
-)
-from mfcl_jax.pipeline.simdata import (
-    check_waypoints,
-    read_waypoints,
-    simulate_dataset,
-    simulate_scans,
 )
 
 __all__ = [

@@ -29,9 +29,9 @@ from mfcl_jax.decision import DecisionParams, SelectiveInitializer, gate_maps
 from mfcl_jax.decision.stream import Decision
 from mfcl_jax.frontend import FrontendParams, build_features, make_register
 from mfcl_jax.io.errors import DataError
-from mfcl_jax.sources.sequence import ScanSequence, keyframes
 from mfcl_jax.sim.submaps import SubmapParams, build_submap, window_bounds
 from mfcl_jax.sim.trajectory import travelled
+from mfcl_jax.sources.sequence import ScanSequence, keyframes
 
 __all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize"]
 

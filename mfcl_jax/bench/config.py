@@ -1,0 +1,153 @@
+"""What the generalisation benchmark runs: families, seeds, policies, fault axes.
+
+Every name and number is checked here, before any work starts, and a bad one is an error
+naming the option and the value (``BenchmarkError``).
+
+Sources of runs ("families"):
+
+* procedural building families (``floorplan.families``), ``walks`` walks per building and
+  ``seeds`` buildings per family;
+* ``ifc:<model>``: the shared IFC models with ``ifc_walks`` random door-to-door tours each
+  (per seed);
+* ``log:<name>`` / ``bag:intel``: windows of the real laser logs against occupancy maps built
+  without the window's own scans, ``log_windows`` windows each.
+
+Fault axes (``faults``) re-run a base set of procedural runs (``fault_seeds`` seeds x the
+first walk of every procedural family) at every level of the axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = [
+    "BenchmarkError",
+    "BenchmarkConfig",
+    "PROCEDURAL",
+    "IFC_MODELS",
+    "LOGS",
+    "FAULTS",
+    "POLICIES",
+    "validate",
+]
+
+PROCEDURAL = ("plain", "bays", "offices", "corridor", "hall", "ring", "rotational", "mirror")
+IFC_MODELS = {
+    "office_a": ("ifc/Office_A_20110811.ifc", "Level 1"),
+    "duplex": ("ifc/Duplex_A_20110907_Architecture.ifc", "Level 1"),
+    "fzk_haus": ("ifc/AC20-FZK-Haus.ifc", None),
+}
+LOGS = ("intel", "freiburg-101", "orebro", "seattle")
+# axis -> levels (the first level of the numeric axes is the nominal setting)
+FAULTS = {
+    "drift": (0.005, 0.01, 0.02, 0.03),  # odometry translation drift, fraction of distance
+    "yaw_drift": (0.1, 0.25, 0.5),  # deg per metre
+    "clutter": (0.0, 0.15, 0.3, 0.5),  # extra furniture, fraction of the floor area
+    "dropout": (0.02, 0.2, 0.4, 0.6),  # fraction of beams lost
+    "range_noise": (0.02, 0.035, 0.05),  # m
+    "as_built": ("missing_wall", "extra_partition", "moved_door"),
+    "scale": (1.0, 1.01, 1.02),  # floor-plan scale error
+    "restart": (0.35, 0.5, 0.65),  # odometry restart at this fraction of the walk
+}
+POLICIES = (
+    "ours",
+    "no_probe",
+    "consensus_only",
+    "ours_b2_d1",
+    "ours_b4_d2",
+    "single_shot",
+    "support",
+    "confidence",
+    "gate_only",
+    "mcl",
+)
+
+
+class BenchmarkError(ValueError):
+    """A benchmark option that cannot be run; the message names the option and value."""
+
+
+@dataclass
+class BenchmarkConfig:
+    """The benchmark (Hydra schema; ``conf/benchmark.yaml`` fills it).
+
+    Attributes:
+        families: sources of runs (see the module docstring).
+        seeds: buildings per procedural family (and tours per IFC model multiplier).
+        walks: walks per procedural building.
+        ifc_walks: random tours per IFC model and seed.
+        log_windows: windows per real log (and the Intel bag).
+        log_length: metres of travel per log window.
+        policies: systems under test (our variants, the baselines, ``mcl``).
+        faults: fault axes to run (``all`` for every axis, empty for none).
+        fault_seeds: seeds of the fault base set.
+        d_s: window length (m).
+        mcl_particles: particles of the filter peer.
+        out: output folder.
+        cache: cache folder for floor plans, maps and labels (``""``: no cache).
+        figures: draw figures.
+        progress: print progress.
+    """
+
+    families: list[str] = field(
+        default_factory=lambda: [
+            *PROCEDURAL,
+            *(f"ifc:{m}" for m in IFC_MODELS),
+            *(f"log:{n}" for n in LOGS),
+            "bag:intel",
+        ]
+    )
+    seeds: int = 12
+    walks: int = 3
+    ifc_walks: int = 2
+    log_windows: int = 6
+    log_length: float = 60.0
+    policies: list[str] = field(default_factory=lambda: list(POLICIES))
+    faults: list[str] = field(default_factory=lambda: ["all"])
+    fault_seeds: int = 2
+    d_s: float = 6.0
+    mcl_particles: int = 4096
+    out: str = "results/benchmark"
+    cache: str = "~/.cache/mfcl_jax"
+    figures: bool = True
+    progress: bool = True
+
+
+def _bad(option: str, value, known=None) -> BenchmarkError:
+    tail = f"; known: {', '.join(map(str, known))}" if known is not None else ""
+    return BenchmarkError(f"benchmark: {option}={value!r} is not valid{tail}")
+
+
+def validate(cfg: BenchmarkConfig) -> BenchmarkConfig:
+    """Checks every option; returns ``cfg`` with ``faults=["all"]`` expanded."""
+    known = [*PROCEDURAL, *(f"ifc:{m}" for m in IFC_MODELS), *(f"log:{n}" for n in LOGS)]
+    known.append("bag:intel")
+    for f in cfg.families:
+        if f not in known:
+            raise _bad("families", f, known)
+    if not cfg.families:
+        raise _bad("families", [], known)
+    for name in ("seeds", "walks", "ifc_walks", "log_windows", "fault_seeds"):
+        v = getattr(cfg, name)
+        if not isinstance(v, int) or isinstance(v, bool) or v <= 0:
+            raise _bad(name, v)
+    if not cfg.log_length >= 20.0:
+        raise BenchmarkError(
+            f"benchmark: log_length={cfg.log_length!r} is too short: a log window needs at "
+            "least 20 m of travel (a few submap windows)"
+        )
+    if not cfg.d_s > 0 or cfg.d_s > cfg.log_length / 2:
+        raise _bad("d_s", cfg.d_s)
+    for p in cfg.policies:
+        if p not in POLICIES:
+            raise _bad("policies", p, POLICIES)
+    if not cfg.policies:
+        raise _bad("policies", [], POLICIES)
+    faults = list(FAULTS) if list(cfg.faults) == ["all"] else list(cfg.faults)
+    for f in faults:
+        if f not in FAULTS:
+            raise _bad("faults", f, ["all", *FAULTS])
+    cfg.faults = faults
+    if cfg.mcl_particles < 64:
+        raise _bad("mcl_particles", cfg.mcl_particles)
+    return cfg

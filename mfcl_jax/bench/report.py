@@ -1,0 +1,156 @@
+"""Benchmark tables and figures, from the scored decisions and the geometric labels.
+
+Per run and policy (threshold set ``DEFAULT_SET`` unless stated):
+
+* a FALSE commit run: some COMMIT window places the robot wrong (> 1 m or > 5 deg); a commit
+  must stay right while it is reported, so a run that committed correctly and later drifted
+  off counts as false;
+* a CORRECT commit run: it committed and every COMMIT window is right;
+* coverage: correct commit runs / identifiable runs; abstention: runs without a commit /
+  non-identifiable runs; rates carry Wilson 95 % intervals;
+* delay: first commit window minus the oracle window (identifiable runs committed correctly).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from mfcl_jax.bench.config import FAULTS
+from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
+from mfcl_jax.score import first_commits, wilson
+
+__all__ = ["run_table", "family_table", "risk_coverage", "fault_table", "first_false_level"]
+
+
+def run_table(scored: pd.DataFrame, labels) -> pd.DataFrame:
+    """One row per run x policy x set: first commit, correctness, the run's label."""
+    keys = ("run", "policy", "set")
+    fc = first_commits(scored, keys)
+    meta_cols = [c for c in ("name", "family", "kind", "seed", "walk", "fault", "level")
+                 if c in scored]  # fmt: skip
+    meta = scored.drop_duplicates("run")[["run", *meta_cols]]
+    lab = pd.DataFrame(
+        dict(
+            run=np.arange(len(labels)),
+            identifiable=[lb.identifiable for lb in labels],
+            oracle_k=[lb.oracle_k if lb.oracle_k is not None else math.nan for lb in labels],
+            n_alternatives=[lb.n_alternatives for lb in labels],
+        )
+    )
+    out = fc.merge(meta, on="run", how="left").merge(lab, on="run", how="left")
+    out["correct_run"] = out["committed"] & ~out["any_false"]
+    out["delay"] = np.where(out["correct_run"] & out["identifiable"], out["k"] - out["oracle_k"],
+                            np.nan)  # fmt: skip
+    return out
+
+
+def _rate(k: int, n: int) -> str:
+    if n == 0:
+        return "-"
+    lo, hi = wilson(k, n)
+    return f"{k}/{n} [{lo:.2f}, {hi:.2f}]"
+
+
+def _summary(g: pd.DataFrame) -> dict:
+    n = len(g)
+    ident = g["identifiable"].astype(bool)
+    false = int(g["any_false"].sum())
+    cov = int((g["correct_run"] & ident).sum())
+    abst = int((~g["committed"] & ~ident).sum())
+    lucky = int((g["correct_run"] & ~ident).sum())
+    delay = g.loc[g["correct_run"] & ident, "delay"]
+    err = g.loc[g["correct_run"], "err_xy"]
+    return dict(
+        runs=n,
+        identifiable=int(ident.sum()),
+        false_commit=_rate(false, n),
+        false_upper=wilson(false, n)[1] if n else math.nan,
+        coverage=_rate(cov, int(ident.sum())),
+        abstain_nonident=_rate(abst, int((~ident).sum())),
+        lucky_commits=lucky,
+        median_delay=float(delay.median()) if len(delay) else math.nan,
+        median_err_m=float(err.median()) if len(err) else math.nan,
+    )
+
+
+def family_table(runs: pd.DataFrame, policies, by: str = "family") -> pd.DataFrame:
+    """Per ``by`` value and policy (nominal runs, default set), plus an ``all`` row each."""
+    nom = runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
+    rows = []
+    for pol in policies:
+        g = nom[nom["policy"] == pol]
+        if g.empty:
+            continue
+        for fam, gf in g.groupby(by, sort=False):
+            rows.append({by: fam, "policy": pol, **_summary(gf)})
+        rows.append({by: "all", "policy": pol, **_summary(g)})
+    return pd.DataFrame(rows)
+
+
+def risk_coverage(runs: pd.DataFrame, policies) -> pd.DataFrame:
+    """False-commit rate vs coverage of identifiable runs, per policy and knob setting."""
+    nom = runs[runs["fault"].fillna("") == ""]
+    rows = []
+    for (pol, s), g in nom.groupby(["policy", "set"], sort=True):
+        if pol not in policies:
+            continue
+        ident = g["identifiable"].astype(bool)
+        n_id = max(int(ident.sum()), 1)
+        knob = KNOB_SETS[int(s)] if 0 <= int(s) < len(KNOB_SETS) else {}
+        rows.append(
+            dict(
+                policy=pol,
+                set=int(s),
+                knob=_knob_label(pol, knob, g),
+                runs=len(g),
+                false_rate=float(g["any_false"].mean()),
+                false_upper=wilson(int(g["any_false"].sum()), len(g))[1],
+                coverage=float((g["correct_run"] & ident).sum() / n_id),
+                commit_rate=float(g["committed"].mean()),
+            )
+        )
+    return pd.DataFrame(rows)
+
+
+def _knob_label(pol: str, knob: dict, g) -> str:
+    if pol in ("ours", "no_probe", "consensus_only"):
+        return f"b_min={knob.get('b_min')}, delta_min={knob.get('delta_min')}"
+    if pol == "confidence":
+        return f"ratio={knob.get('confidence_ratio')}"
+    if pol == "support":
+        return f"ratio={knob.get('support_ratio')}"
+    if "knob" in g:
+        return str(g["knob"].iloc[0])
+    return "-"
+
+
+def fault_table(runs: pd.DataFrame, axis: str, policies) -> pd.DataFrame:
+    """Per level of one fault axis and policy: false commits / runs, coverage, abstentions."""
+    g = runs[(runs["fault"] == axis) & (runs["set"] == DEFAULT_SET)]
+    rows = []
+    for pol in policies:
+        for lvl in FAULTS[axis]:
+            h = g[(g["policy"] == pol) & (g["level"] == str(lvl))]
+            if h.empty:
+                continue
+            rows.append({"axis": axis, "level": str(lvl), "policy": pol, **_summary(h)})
+    return pd.DataFrame(rows)
+
+
+def first_false_level(runs: pd.DataFrame, policies) -> pd.DataFrame:
+    """Per fault axis and policy: the first level at which some run commits falsely."""
+    rows = []
+    for axis in FAULTS:
+        g = runs[(runs["fault"] == axis) & (runs["set"] == DEFAULT_SET)]
+        if g.empty:
+            continue
+        row = {"axis": axis}
+        for pol in policies:
+            h = g[g["policy"] == pol]
+            bad = [str(lv) for lv in FAULTS[axis] if h[h["level"] == str(lv)]["any_false"].any()]
+            row[pol] = bad[0] if bad else "none"
+        rows.append(row)
+    return pd.DataFrame(rows)

@@ -1,0 +1,190 @@
+"""The benchmark pipeline: recordings -> windows -> front-end -> labels -> decisions -> scores.
+
+Runs are processed group by group (a family, or a fault level): a group's scans and submap
+points live only while its front-end pass and its labels are computed; what is kept (odometry,
+windows, candidates, labels, ground truth) is small. Then every run of every group is decided
+in one compiled call (all policies, all threshold sets of the risk-coverage sweep) and scored
+by the one scorer. Ground truth enters only through ``mfcl_jax.score``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from mfcl_jax import windows as W
+from mfcl_jax.bench.config import BenchmarkConfig, validate
+from mfcl_jax.decision.state import DecisionParams
+from mfcl_jax.sources import Recording, ScanSequence
+
+__all__ = ["KNOB_SETS", "DEFAULT_SET", "Collected", "collect", "decide_and_score"]
+
+# Threshold sets of the risk-coverage sweep: every policy reads its own knob from the set
+# (ours and its ablations: the floors b_min / delta_min; confidence: its ratio; support: its
+# ratio). Set DEFAULT_SET holds the defaults, used by every headline table.
+KNOB_SETS = (
+    dict(b_min=2, delta_min=1, confidence_ratio=1.05, support_ratio=1.1),
+    dict(b_min=3, delta_min=2, confidence_ratio=1.2, support_ratio=1.5),
+    dict(b_min=4, delta_min=3, confidence_ratio=1.4, support_ratio=2.0),
+    dict(b_min=5, delta_min=4, confidence_ratio=1.7, support_ratio=3.0),
+    dict(b_min=6, delta_min=5, confidence_ratio=2.0, support_ratio=4.0),
+    dict(b_min=8, delta_min=6, confidence_ratio=2.5, support_ratio=6.0),
+    dict(b_min=10, delta_min=8, confidence_ratio=3.0, support_ratio=8.0),
+)
+DEFAULT_SET = 1
+LABEL_VERSION = "labels-v1"
+
+
+def _log(cfg, msg):
+    if cfg.progress:
+        print(f"[benchmark] {msg}", file=sys.stderr, flush=True)
+
+
+@dataclass
+class Collected:
+    """Everything kept of the runs after their group's heavy work (no scans, no points)."""
+
+    recordings: list = field(default_factory=list)  # light: odometry, times, truth, meta
+    batches: list = field(default_factory=list)  # WindowBatch without points, per group
+    candidates: list = field(default_factory=list)  # Candidates per group
+    floorplans: list = field(default_factory=list)  # by building index
+    labels: list = field(default_factory=list)  # RunLabel per run
+    mcl: list = field(default_factory=list)  # per-group MCL decision frames
+    timings: dict = field(default_factory=dict)
+
+    def tick(self, stage: str, seconds: float) -> None:
+        self.timings[stage] = self.timings.get(stage, 0.0) + seconds
+
+
+def _light(rec: Recording) -> Recording:
+    seq = rec.seq
+    empty = np.zeros((0, 2))
+    light = ScanSequence(seq.times, [empty] * len(seq), seq.odometry, seq.source)
+    return Recording(rec.name, rec.floorplan, light, rec.truth, rec.meta)
+
+
+def _digest(rec: Recording) -> str:
+    h = hashlib.sha1(LABEL_VERSION.encode())
+    for a in (rec.seq.times, rec.seq.odometry, rec.truth.poses, rec.floorplan.walls):
+        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    h.update(np.float64(sum(float(np.nansum(s)) for s in rec.seq.scans)).tobytes())
+    return h.hexdigest()[:20]
+
+
+def _labels(recs, wins, cfg, col: Collected):
+    from mfcl_jax.frontend import path_search as ps
+    from mfcl_jax.score.identifiability import RunLabel, label_runs
+
+    cache = Path(cfg.cache).expanduser() / "labels" if cfg.cache else None
+    out, todo = [None] * len(recs), []
+    for i, r in enumerate(recs):
+        f = cache / f"{_digest(r)}.json" if cache else None
+        if f is not None and f.is_file():
+            d = json.loads(f.read_text())
+            d["identifiable_k"] = np.asarray(d["identifiable_k"], bool)
+            d["alternative"] = tuple(d["alternative"]) if d["alternative"] else None
+            out[i] = RunLabel(**d)
+        else:
+            todo.append(i)
+    fields = {}
+
+    def fields_of(rec):
+        key = id(rec.floorplan)
+        if key not in fields:
+            fields[key] = ps.plan_fields(rec.floorplan.rasterize())
+        return fields[key]
+
+    if todo:
+        labs = label_runs([recs[i] for i in todo], [wins[i] for i in todo], fields_of)
+        for i, lab in zip(todo, labs, strict=True):
+            out[i] = lab
+            if cache is not None:
+                cache.mkdir(parents=True, exist_ok=True)
+                d = asdict(lab)
+                d["identifiable_k"] = lab.identifiable_k.astype(int).tolist()
+                (cache / f"{_digest(recs[i])}.json").write_text(json.dumps(d))
+    return out
+
+
+def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
+    """Front-end pass, labels and the filter peer for one group of recordings."""
+    wp = W.WindowParams(d_s=cfg.d_s)
+    t0 = time.perf_counter()
+    wins = [W.cut(r.seq, wp) for r in recs]
+    col.tick("windows", time.perf_counter() - t0)
+    bidx = {}
+    items = []
+    for r, w in zip(recs, wins, strict=True):
+        if id(r.floorplan) not in bidx:
+            bidx[id(r.floorplan)] = fe.add(r.floorplan)
+            col.floorplans.append(r.floorplan)
+        items.append((r.seq, w, bidx[id(r.floorplan)]))
+    wb = W.pack(items)
+    c0, r0 = fe.compile_s, fe.run_s
+    cands = fe.register(wb.submaps, wb.building)
+    col.tick("front-end compile", fe.compile_s - c0)
+    col.tick("front-end run", fe.run_s - r0)
+    col.tick("submaps", wb.submaps.n)
+    t0 = time.perf_counter()
+    col.labels += _labels(recs, wins, cfg, col)
+    col.tick("labels", time.perf_counter() - t0)
+    if mcl_runner is not None:
+        t0 = time.perf_counter()
+        col.mcl.append(mcl_runner(recs, wins, len(col.recordings)))
+        col.tick("mcl", time.perf_counter() - t0)
+    col.batches.append(W.concat([wb]))
+    col.candidates.append(cands)
+    col.recordings += [_light(r) for r in recs]
+
+
+def collect(cfg: BenchmarkConfig, groups, mcl_runner=None) -> Collected:
+    """Runs every group's heavy stages; ``groups`` yields ``(name, list of Recording)``."""
+    from mfcl_jax.frontend.driver import FrontEnd
+
+    cfg = validate(cfg)
+    fe = FrontEnd()
+    col = Collected()
+    for name, make in groups:
+        t0 = time.perf_counter()
+        recs = make()
+        col.tick("recordings", time.perf_counter() - t0)
+        if not recs:
+            continue
+        _group(recs, cfg, fe, col, mcl_runner)
+        n = int(col.timings.get("submaps", 0))
+        _log(cfg, f"{name}: {len(recs)} runs done ({len(col.recordings)} runs, {n} submaps)")
+    return col
+
+
+def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame:
+    """Every policy of ``ours`` (+ baselines) at every window and threshold set, scored.
+
+    Returns:
+        One row per run x window x set x policy with the scorer's columns and the run's meta.
+    """
+    from mfcl_jax.batch import Candidates
+    from mfcl_jax.decision.driver import decide
+    from mfcl_jax.score import score_batch
+
+    batch = W.concat(col.batches)
+    cands = Candidates(
+        *(np.concatenate([getattr(c, f.name) for c in col.candidates]) for f in fields(Candidates))
+    )
+    params = [DecisionParams().replace(**k) for k in KNOB_SETS]
+    t0 = time.perf_counter()
+    frame, tm = decide(batch, cands, col.floorplans, params, ours=tuple(ours))
+    col.tick("decision compile", tm["compile_s"])
+    col.tick("decision run", tm["run_s"])
+    parts = [frame, *col.mcl]
+    frame = pd.concat(parts, ignore_index=True) if col.mcl else frame
+    scored = score_batch(frame, batch, col.recordings, rooms=False)
+    col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"])
+    meta = pd.DataFrame([dict(run=i, name=r.name, **r.meta) for i, r in enumerate(col.recordings)])
+    return scored.merge(meta, on="run", how="left")

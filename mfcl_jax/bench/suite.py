@@ -1,0 +1,157 @@
+"""The benchmark's runs as ``Recording``s: procedural buildings, IFC tours, real log windows,
+and the fault axes.
+
+Each recording's ``meta`` holds ``family``, ``seed``, ``walk``, ``fault`` and ``level`` (empty
+for the nominal runs), which the report groups by. Floor plans of the IFC models are cached
+as GeoJSON under the cache folder, so a re-run does not re-cut the IFC files.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from mfcl_jax.bench.config import FAULTS, IFC_MODELS, PROCEDURAL, BenchmarkConfig
+from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams
+
+__all__ = ["DATA", "nominal_recordings", "fault_recordings", "ifc_floorplan"]
+
+DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+
+
+def _log(cfg, msg):
+    if cfg.progress:
+        print(f"[benchmark] {msg}", file=sys.stderr, flush=True)
+
+
+def _tag(recs, **meta):
+    from mfcl_jax.sources import Recording
+
+    return [Recording(r.name, r.floorplan, r.seq, r.truth, {**r.meta, **meta}) for r in recs]
+
+
+def _procedural(family: str, seed: int, walks: int, params: SimParams, scene=None, **meta):
+    from mfcl_jax.floorplan import families
+    from mfcl_jax.sources.simulated import simulate
+
+    scene = scene or families.make_scene(family, seed)
+    names = list(scene.trajectories)[:walks]
+    recs = simulate(scene, names, [seed], params)
+    meta = {"fault": "", "level": "", **meta}
+    out = _tag(recs, family=family, kind="procedural", seed=seed, **meta)
+    for r, n in zip(out, names, strict=True):
+        r.meta["walk"] = n
+    return out
+
+
+def ifc_floorplan(model: str, cache: str | None):
+    """The IFC model's floor plan (cached as GeoJSON in ``cache``)."""
+    from mfcl_jax.floorplan.geojson import load_geojson, save_geojson
+    from mfcl_jax.floorplan.load import load_floorplan
+
+    file, storey = IFC_MODELS[model]
+    if cache:
+        path = Path(cache).expanduser() / "floorplans" / f"{model}.geojson"
+        if path.is_file():
+            return load_geojson(path)
+    fp = load_floorplan(DATA / file, storey=storey)
+    if cache:
+        save_geojson(fp, path)
+    return fp
+
+
+def _ifc(model: str, seed: int, n: int, cfg: BenchmarkConfig):
+    from mfcl_jax.floorplan.scenes import Scene
+    from mfcl_jax.sources.simulated import simulate
+    from mfcl_jax.sources.walks import random_tours
+
+    fp = ifc_floorplan(model, cfg.cache)
+    tours = random_tours(fp, n, seed=1000 + seed)
+    if not tours:
+        return []
+    trajs = {f"tour{i}": w for i, w in enumerate(tours)}
+    scene = Scene(f"ifc:{model}", fp, np.zeros((0, 2, 2)), trajs)
+    recs = simulate(scene, list(trajs), [seed], SimParams())
+    out = _tag(recs, family=f"ifc:{model}", kind="ifc", seed=seed, fault="", level="")
+    for r, n_ in zip(out, trajs, strict=True):
+        r.meta["walk"] = n_
+    return out
+
+
+def _logs(family: str, cfg: BenchmarkConfig):
+    from mfcl_jax.sources import logs
+
+    cache = str(Path(cfg.cache).expanduser() / "maps") if cfg.cache else None
+    if family == "bag:intel":
+        recs = logs.bag_recordings(cfg.log_windows, cfg.log_length, cache_dir=cache)
+    else:
+        recs = logs.log_recordings(family[4:], cfg.log_windows, cfg.log_length, cache_dir=cache)
+    out = _tag(recs, family=family, kind="log", fault="", level="")
+    for r in out:
+        r.meta.setdefault("seed", 0)
+        r.meta["walk"] = r.meta.get("trajectory", r.name)
+    return out
+
+
+def nominal_recordings(cfg: BenchmarkConfig) -> list:
+    """Every nominal run of the configuration, family by family."""
+    out = []
+    for fam in cfg.families:
+        n0 = len(out)
+        if fam in PROCEDURAL:
+            for seed in range(cfg.seeds):
+                out += _procedural(fam, seed, cfg.walks, SimParams())
+        elif fam.startswith("ifc:"):
+            for seed in range(cfg.seeds):
+                out += _ifc(fam[4:], seed, cfg.ifc_walks, cfg)
+        else:
+            out += _logs(fam, cfg)
+        _log(cfg, f"{fam}: {len(out) - n0} runs")
+    return out
+
+
+def _faulted(axis: str, level, fam: str, seed: int):
+    """(scene or None, SimParams) of one fault level for one base building."""
+    from mfcl_jax.floorplan import families
+
+    scene = families.make_scene(fam, seed)
+    lidar, traj = LidarParams(), TrajectoryParams()
+    sim = SimParams()
+    if axis == "drift":
+        sim = replace(sim, trajectory=replace(traj, drift_xy=float(level)))
+    elif axis == "yaw_drift":
+        sim = replace(sim, trajectory=replace(traj, drift_yaw_deg_per_m=float(level)))
+    elif axis == "dropout":
+        sim = replace(sim, lidar=replace(lidar, dropout=float(level)))
+    elif axis == "range_noise":
+        sim = replace(sim, lidar=replace(lidar, sigma=float(level)))
+    elif axis == "restart":
+        sim = replace(sim, restart_at=float(level))
+    elif axis == "clutter":
+        scene = families.with_clutter(scene, float(level), seed) if level else scene
+    elif axis == "as_built":
+        scene = families.with_as_built(scene, str(level), seed)
+    elif axis == "scale":
+        scene = families.with_scale_error(scene, float(level)) if level != 1.0 else scene
+    else:
+        raise KeyError(axis)
+    return scene, sim
+
+
+def fault_recordings(cfg: BenchmarkConfig) -> list:
+    """The base set (first walk of every procedural family, ``fault_seeds`` seeds) at every
+    level of every configured fault axis."""
+    fams = [f for f in cfg.families if f in PROCEDURAL]
+    out = []
+    for axis in cfg.faults:
+        n0 = len(out)
+        for level in FAULTS[axis]:
+            for fam in fams:
+                for seed in range(cfg.fault_seeds):
+                    scene, sim = _faulted(axis, level, fam, seed)
+                    out += _procedural(fam, seed, 1, sim, scene=scene, fault=axis, level=str(level))
+        _log(cfg, f"fault {axis}: {len(out) - n0} runs")
+    return out

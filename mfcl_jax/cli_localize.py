@@ -1,6 +1,7 @@
 """``mfcl localize | evaluate | simulate``: the robot path, its scoring, and a dataset maker.
 
-Thin: argument parsing and printing; the work is in ``mfcl_jax.pipeline``.
+Thin: argument parsing and printing; the work is in ``mfcl_jax.localizer``, ``mfcl_jax.score``
+and ``mfcl_jax.sources``.
 """
 
 from __future__ import annotations
@@ -84,14 +85,14 @@ def cmd_localize(args) -> int:
     from tqdm import tqdm
 
     from mfcl_jax.io import DataError, write_decisions
-    from mfcl_jax.pipeline.localize import LocalizeParams, Localizer
+    from mfcl_jax.localizer import LocalizeParams, Localizer
 
     if not args.d_s > 0:
         raise DataError(f"localize: --d-s must be > 0, got {args.d_s}")
     if args.out.is_dir():
         raise DataError(f"{args.out}: --out is a folder, expected a file name")
     fp, seq = _load_input(args)
-    loc = Localizer(fp, LocalizeParams(d_s=args.d_s))
+    loc = Localizer(fp, LocalizeParams().with_d_s(args.d_s))
     n = loc.n_windows(seq)
     print(
         f"{seq.source}: {len(seq)} scans, {n} windows of {args.d_s:g} m; floor plan {fp.name}",
@@ -126,7 +127,7 @@ def cmd_evaluate(args) -> int:
     import pandas as pd
 
     from mfcl_jax.io import DataError, read_decisions, read_tum
-    from mfcl_jax.pipeline.score import format_table, score_decisions, summarize
+    from mfcl_jax.score import format_table, score_decisions, summarize
 
     folder = args.dataset
     if not folder.is_dir():
@@ -177,7 +178,8 @@ def cmd_evaluate(args) -> int:
 def cmd_simulate(args) -> int:
     from mfcl_jax.floorplan.load import load_floorplan
     from mfcl_jax.io import DataError
-    from mfcl_jax.pipeline.simdata import read_waypoints, simulate_dataset
+    from mfcl_jax.sources.simulated import simulate_dataset
+    from mfcl_jax.sources.walks import read_waypoints
 
     if args.out.exists() and not args.overwrite:
         raise DataError(f"{args.out}: already exists (pass --overwrite to replace it)")

@@ -19,6 +19,7 @@ from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
 from mfcl_jax.decision.state import DecisionParams
 from mfcl_jax.frontend.registry import FrontendParams
 from mfcl_jax.sim import SimParams
+from mfcl_jax.windows import WindowParams
 
 __all__ = ["StudyConfig", "register_configs", "to_study", "as_list", "build"]
 
@@ -55,6 +56,7 @@ class StudyConfig:
     density_run: str = "T2@6"
     progress: bool = True
     sim: SimParams = field(default_factory=SimParams)
+    window: WindowParams = field(default_factory=WindowParams)
     frontend: FrontendParams = field(default_factory=FrontendParams)
     decision: DecisionParams = field(default_factory=DecisionParams)
 
@@ -62,7 +64,7 @@ class StudyConfig:
 # The top-level schema is StudyConfig itself with the loosely typed fields relaxed: ``scenes``
 # and ``d_s`` take a scalar (one multirun job) or a list, and the parameter groups are filled
 # from their own group schemas (``register_configs``).
-_LOOSE = ("scenes", "d_s", "sim", "frontend", "decision")
+_LOOSE = ("scenes", "d_s", "sim", "window", "frontend", "decision")
 _SweepSchema = dataclasses.make_dataclass(
     "_SweepSchema",
     [
@@ -128,6 +130,7 @@ def register_configs() -> None:
     cs = ConfigStore.instance()
     cs.store(name="sweep_schema", node=_SweepSchema)
     cs.store(group="sim", name="schema", node=_mirror(SimParams))
+    cs.store(group="window", name="schema", node=_mirror(WindowParams))
     cs.store(group="frontend", name="schema", node=_mirror(FrontendParams))
     cs.store(group="decision", name="schema", node=_mirror(DecisionParams))
 
@@ -152,6 +155,7 @@ def to_study(cfg: DictConfig) -> StudyConfig:
         scenes=scenes,
         d_s=d_s,
         sim=build(SimParams, cfg.sim),
+        window=build(WindowParams, cfg.window),
         frontend=build(FrontendParams, cfg.frontend),
         decision=build(DecisionParams, cfg.decision),
         **plain,

@@ -40,6 +40,7 @@ __all__ = [
     "pack",
     "rethinned",
     "concat",
+    "window",
 ]
 
 
@@ -317,6 +318,15 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     runs = RunBatch(traj, traj_t, traj_mask, window_end, window_mask, submap)
     rb = np.asarray([b for *_, b in items], np.int32)
     return WindowBatch(subs, runs, building, rb, [w for _, w, _ in items])
+
+
+def window(w: Windows, k: int) -> Windows:
+    """Window ``k`` of ``w`` alone (same keyframes)."""
+    sl = slice(k, k + 1)
+    return Windows(
+        w.keyframes, w.bounds[sl], w.points[sl], w.origins[sl], w.voxel[sl], w.X[sl], w.t[sl],
+        w.params,
+    )  # fmt: skip
 
 
 def rethinned(w: Windows) -> np.ndarray:

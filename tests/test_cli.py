@@ -220,7 +220,7 @@ def test_evaluate_bad_inputs(sim, tmp_path, capsys):
 
 
 def test_waypoints_header_and_comments(tmp_path):
-    from mfcl_jax.pipeline import read_waypoints
+    from mfcl_jax.sources.walks import read_waypoints
 
     p = tmp_path / "w.csv"
     p.write_text("# a comment\nx, y\n1, 2\n\n3,4\n")

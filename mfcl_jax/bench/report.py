@@ -66,6 +66,8 @@ def _summary(g: pd.DataFrame) -> dict:
     return dict(
         runs=n,
         identifiable=int(ident.sum()),
+        n_false=false,
+        n_covered=cov,
         false_commit=_rate(false, n),
         false_upper=wilson(false, n)[1] if n else math.nan,
         coverage=_rate(cov, int(ident.sum())),

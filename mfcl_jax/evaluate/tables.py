@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.evaluate.metrics import wilson
 from mfcl_jax.io.atomic import atomic_write
+from mfcl_jax.score.summary import wilson
 
 __all__ = [
     "FORCED",

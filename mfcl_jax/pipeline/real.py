@@ -25,14 +25,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from shapely.geometry import Point
 
 from mfcl_jax import se2
-from mfcl_jax.pipeline.localize import LocalizeParams, Localizer
-from mfcl_jax.pipeline.score import pose_at, score_decisions, summarize
+from mfcl_jax.localizer import LocalizeParams, Localizer
+from mfcl_jax.score import pose_at, score_decisions, summarize
 from mfcl_jax.sources.sequence import ScanSequence, from_bag
+from mfcl_jax.sources.walks import route
 
-__all__ = ["route", "run_all", "bag_ground_truth", "main"]
+__all__ = ["run_all", "bag_ground_truth", "main"]
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel log
@@ -40,45 +40,6 @@ DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel l
 
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-def route(fp, rooms, through: float = 0.8, extra: dict | None = None) -> np.ndarray:
-    """Waypoints visiting ``rooms`` in order: a room's interior point, then for every
-    transition the two points ``through`` m either side of the shared door's midpoint.
-
-    ``extra`` maps a position in the list (index of the room) to via points appended after
-    that room's interior point.
-    """
-    extra = extra or {}
-    by_name = {r.name: r for r in fp.rooms}
-
-    def inside(name):
-        p = by_name[name].polygon
-        c = p.centroid
-        return np.asarray((c if p.contains(c) else p.representative_point()).coords[0])
-
-    pts = [inside(rooms[0])] + [np.asarray(v, float) for v in extra.get(0, [])]
-    for i, (a, b) in enumerate(zip(rooms[:-1], rooms[1:], strict=True), 1):
-        door = next((d for d in fp.doors if set(d.rooms) == {a, b}), None)
-        if door is None:
-            raise ValueError(f"{fp.name}: no door between {a!r} and {b!r}")
-        m = door.segment.mean(0)
-        u = door.segment[1] - door.segment[0]
-        n = np.array([-u[1], u[0]]) / max(np.hypot(*u), 1e-9)
-        poly_b = by_name[b].polygon
-        ahead = poly_b.distance(Point(m + through * n)) < poly_b.distance(Point(m - through * n))
-        s = 1.0 if ahead else -1.0
-        pts += [m - s * through * n, m + s * through * n]
-        if i < len(rooms) - 1 or extra.get(i):
-            pts.append(inside(b))
-        pts += [np.asarray(v, float) for v in extra.get(i, [])]
-    if len(rooms) > 1 and not extra.get(len(rooms) - 1):
-        pts.append(inside(rooms[-1]))
-    out = [pts[0]]
-    for p in pts[1:]:
-        if np.hypot(*(p - out[-1])) > 0.05:
-            out.append(p)
-    return np.asarray(out)
 
 
 # ----------------------------------------------------------------------------- cases
@@ -256,7 +217,8 @@ def _plot(fp, case: Case, scored, png: Path) -> None:
 
 def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict]:
     from mfcl_jax.floorplan.load import load_floorplan
-    from mfcl_jax.pipeline.simdata import check_waypoints, simulate_scans
+    from mfcl_jax.sources.simulated import simulate_walk
+    from mfcl_jax.sources.walks import check_waypoints
 
     t0 = time.perf_counter()
     fp = load_floorplan(DATA / spec["file"], storey=spec["storey"])
@@ -267,8 +229,9 @@ def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict
         wp = np.asarray(wp, float) if wp is not None else route(fp, rooms)
         check_waypoints(fp, wp, f"{spec['building']}/{name}")
         for seed in seeds:
-            t, true, odo, scans = simulate_scans(fp, wp, seed=seed, tag=name)
-            case = Case(spec["building"], name, note, ScanSequence(t, scans, odo, name), t, true)
+            rec = simulate_walk(fp, wp, seed=seed, tag=name)
+            seq = ScanSequence(rec.seq.times, rec.seq.scans, rec.seq.odometry, name)
+            case = Case(spec["building"], name, note, seq, rec.truth.times, rec.truth.poses)
             rows.append(_run(loc, case, fp, out))
     return rows
 

@@ -29,7 +29,7 @@ from mfcl_jax.sim.trajectory import odometry, sample_path
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import ScanSequence
 
-__all__ = ["simulate", "simulate_walk", "run_key"]
+__all__ = ["simulate", "simulate_walk", "simulate_dataset", "run_key"]
 
 
 def run_key(seed: int, scene: str, traj: str) -> jax.Array:
@@ -159,3 +159,35 @@ def simulate_walk(floorplan, waypoints, seed: int = 0, params: SimParams | None 
 
     scene = Scene(floorplan.name or "plan", floorplan, np.zeros((0, 2, 2)), {tag: waypoints})
     return simulate(scene, [tag], [seed], params)[0]
+
+
+def simulate_dataset(
+    floorplan,
+    waypoints,
+    out,
+    seed: int = 0,
+    params: SimParams | None = None,
+    overwrite: bool = False,
+    where: str = "<waypoints>",
+):
+    """Writes a dataset folder (atomically) of a walk along ``waypoints`` in ``floorplan``.
+
+    The LiDAR sees the plan's wall faces only (no clutter is known for a user's building);
+    the folder holds the floor plan as GeoJSON, ``odometry.tum``, ``scans/<t>.pcd`` and
+    ``groundtruth.tum``.
+    """
+    from mfcl_jax.io.dataset import write_dataset
+    from mfcl_jax.sources.walks import check_waypoints
+
+    wp = np.asarray(waypoints, np.float64)
+    check_waypoints(floorplan, wp, where)
+    rec = simulate_walk(floorplan, wp, seed, params)
+    return write_dataset(
+        out,
+        floorplan,
+        rec.seq.times,
+        rec.seq.scans,
+        rec.seq.odometry,
+        groundtruth=rec.truth.poses,
+        overwrite=overwrite,
+    )

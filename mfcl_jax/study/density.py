@@ -11,60 +11,31 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.batch import Candidates, RunBatch, SubmapBatch, Truth
+from mfcl_jax import windows as W
+from mfcl_jax.batch import Candidates
 from mfcl_jax.study.pipeline import StudyData
 
 __all__ = ["subset", "flood", "density_table"]
 
 
-def subset(data: StudyData, cands: Candidates, run_ids) -> tuple[StudyData, Candidates]:
-    """The runs ``run_ids`` alone (submaps re-indexed), with their candidates."""
-    run_ids = np.asarray(run_ids)
-    rb = RunBatch(
-        *(
-            np.asarray(getattr(data.runs_batch, f))[run_ids]
-            for f in ("traj", "traj_t", "traj_mask", "window_end", "window_mask", "submap")
-        )
-    )
-    rows = np.unique(rb.submap[rb.submap >= 0])
-    remap = np.full(data.submaps.n, -1, np.int64)
-    remap[rows] = np.arange(len(rows))
-    rb = RunBatch(
-        rb.traj,
-        rb.traj_t,
-        rb.traj_mask,
-        rb.window_end,
-        rb.window_mask,
-        np.where(rb.submap >= 0, remap[np.maximum(rb.submap, 0)], -1).astype(np.int32),
-    )
-    sub = SubmapBatch(
-        *(
-            np.asarray(getattr(data.submaps, f))[rows]
-            for f in ("points", "origins", "mask", "X", "run", "window", "t", "n_dropped")
-        )
-    )
-    new_run = {int(r): i for i, r in enumerate(run_ids)}
-    sub = SubmapBatch(
-        sub.points,
-        sub.origins,
-        sub.mask,
-        sub.X,
-        np.asarray([new_run.get(int(r), -1) for r in sub.run], np.int32),
-        sub.window,
-        sub.t,
-        sub.n_dropped,
-    )
-    truth = Truth(
-        np.asarray(data.truth.traj)[run_ids],
-        np.asarray(data.truth.anchor)[run_ids],
-        np.asarray(data.truth.Y)[rows],
-    )
-    runs = data.runs.set_index("run").loc[run_ids].reset_index()
-    runs["run"] = np.arange(len(run_ids))
+def subset(data: StudyData, cands: Candidates, run_ids):
+    """The runs ``run_ids`` alone, re-packed, with their candidates.
+
+    Returns:
+        ``(batch, recordings, runs, cands)``: a ``WindowBatch`` of those runs, their
+        recordings, their rows of ``data.runs`` (renumbered from 0) and their candidates.
+    """
+    run_ids = [int(r) for r in run_ids]
+    b = data.batch
+    items = [(data.recordings[r].seq, b.windows[r], int(b.run_building[r])) for r in run_ids]
+    batch = W.pack(items, capacity=int(np.asarray(b.submaps.points).shape[1]))
+    rows = np.concatenate([np.asarray(b.runs.submap)[r, : len(b.windows[r])] for r in run_ids])
     c = Candidates(
         *(np.asarray(getattr(cands, f))[rows] for f in ("pose", "score", "mask", "reason"))
     )
-    return StudyData(sub, rb, truth, runs, data.scene_of_submap[rows], data.scenes), c
+    runs = data.runs.set_index("run").loc[run_ids].reset_index()
+    runs["run"] = np.arange(len(run_ids))
+    return batch, [data.recordings[r] for r in run_ids], runs, c
 
 
 def flood(c: Candidates, factor: int, seed: int = 0, jitter_xy=0.2, jitter_deg=1.0) -> Candidates:

@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.evaluate import figures, metrics, tables
+from mfcl_jax.evaluate import figures, tables
 from mfcl_jax.floorplan.scenes import BAY_PITCH, get_scene
+from mfcl_jax.score import first_commits
 from mfcl_jax.study import paper
 
 __all__ = ["KEYS", "firsts_of", "symmetric_summary", "build_tables", "build_figures"]
@@ -23,7 +24,7 @@ KEYS = ("scene", "trajectory", "d_s", "seed", "policy")
 
 def firsts_of(scored: pd.DataFrame) -> pd.DataFrame:
     """First commit per scene x trajectory x d_s x seed x policy."""
-    return metrics.first_commits(scored, keys=KEYS)
+    return first_commits(scored, keys=KEYS)
 
 
 def symmetric_summary(firsts: pd.DataFrame, scored: pd.DataFrame) -> pd.DataFrame:
@@ -218,9 +219,8 @@ def build_figures(scored, data, cands, out, main_seed: int) -> list[Path]:
 def _row_of(data, scored_run_row):
     r = int(scored_run_row["run"])
     k = int(scored_run_row["k"])
-    sub = int(np.asarray(data.runs_batch.submap)[r, k - 1])
-    end = int(np.asarray(data.runs_batch.window_end)[r, k - 1])
-    return r, k, sub, end
+    sub = int(np.asarray(data.batch.runs.submap)[r, k - 1])
+    return r, k, sub
 
 
 def _clouds(scored, firsts, data, out, ds):
@@ -239,18 +239,18 @@ def _clouds(scored, firsts, data, out, ds):
                 clouds.append((f"{pol}: no commit", None, colour, math.nan))
                 continue
             row = g.iloc[0]
-            r, k, sub, end = _row_of(data, row)
+            r, k, sub = _row_of(data, row)
             anchor = np.array([row["x"], row["y"], np.deg2rad(row["yaw_deg"])])
             pts = figures.place_submap(
-                np.asarray(data.submaps.points)[sub],
-                np.asarray(data.submaps.mask)[sub],
+                np.asarray(data.batch.submaps.points)[sub],
+                np.asarray(data.batch.submaps.mask)[sub],
                 anchor,
-                np.asarray(data.submaps.X)[sub],
+                np.asarray(data.batch.submaps.X)[sub],
             )
             label = f"{pol} k={k} room {row['room']}"
             clouds.append((label, pts, colour, row["err_xy"]))
             if pol == "ours" or truth_xy is None:
-                truth_xy = np.asarray(data.truth.traj)[r, end, :2]
+                truth_xy = data.true_pose(r, k)[:2]
         panels.append(
             {
                 "title": f"three_rooms {traj}, d_s={ds:g} m: submap at each policy's "
@@ -269,10 +269,10 @@ def _anchor_space(scored, data, cands, out, ds):
     traj = sorted(scored["trajectory"].unique())[0]
     g = scored[(scored["trajectory"] == traj) & (scored["policy"] == "ours")].sort_values("k")
     r = int(g["run"].iloc[0])
-    subs = np.asarray(data.runs_batch.submap)[r]
+    subs = np.asarray(data.batch.runs.submap)[r]
     subs = subs[subs >= 0]
     pose, score, mask = (np.asarray(a)[subs] for a in (cands.pose, cands.score, cands.mask))
-    X = np.asarray(data.submaps.X)[subs]
+    X = np.asarray(data.batch.submaps.X)[subs]
     H = np.asarray(se2.anchor(pose, X[:, None, :]))
     top = np.argmax(np.where(mask, score, -np.inf), axis=1)
     has = mask.any(1)
@@ -287,7 +287,7 @@ def _anchor_space(scored, data, cands, out, ds):
         H[mask],
         score[mask],
         top1,
-        np.asarray(data.truth.anchor)[r],
+        data.true_anchor(r),
         t_star,
         f"three_rooms {traj}, d_s={ds:g} m: anchors H = Y X^-1",
     )

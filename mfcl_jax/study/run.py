@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,20 +35,22 @@ def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
     ours = scored[(scored["run"] == run) & (scored["policy"] == "ours")].sort_values("k")
     com = ours[ours["state"] == "COMMIT"]
     k_star = int(com["k"].iloc[0]) if len(com) else int(ours["k"].max())
-    sub_data, sub_c = density.subset(data, cands, [run])
+    batch, recs, runs, sub_c = density.subset(data, cands, [run])
     # Only windows up to our commit window: the pool is the one the decision saw.
-    wm = np.asarray(sub_data.runs_batch.window_mask).copy()
+    wm = np.asarray(batch.runs.window_mask).copy()
     wm[:, k_star:] = False
-    rb = sub_data.runs_batch
-    sub_data.runs_batch = type(rb)(rb.traj, rb.traj_t, rb.traj_mask, rb.window_end, wm, rb.submap)
+    rb = batch.runs
+    batch = replace(batch, runs=type(rb)(rb.traj, rb.traj_t, rb.traj_mask, rb.window_end, wm,
+                                         rb.submap))  # fmt: skip
     flooded = density.flood(sub_c, cfg.density_factor, seed=cfg.main_seed)
     frames = []
     pools = []
     for label, c in (("original", sub_c), ("flooded", flooded)):
         w = pipeline.decide(
-            sub_data, c, cfg.decision, tm, label=f"density {label}", progress=cfg.progress
-        )
-        frames.append(pipeline.score(sub_data, w))
+            data, c, cfg.decision, tm, label=f"density {label}", progress=cfg.progress,
+            batch=batch,
+        )  # fmt: skip
+        frames.append(pipeline.score(data, w, batch, recs, runs))
         rows = np.asarray(rb.submap)[0, :k_star]
         pools.append(int(np.asarray(c.mask)[rows[rows >= 0]].sum()))
     return density.density_table(frames[0], frames[1], k_star, pools[0], pools[1])
@@ -64,7 +67,7 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     tm = pipeline.Timings()
     t_start = time.perf_counter()
     seeds = list(range(cfg.seed0, cfg.seed0 + cfg.seeds))
-    data = pipeline.prepare(cfg.scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress)
+    data = pipeline.prepare(cfg.scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress, cfg.window)
     cands = pipeline.register_all(data, cfg.frontend, tm, cfg.progress)
     windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
     scored = pipeline.score(data, windows)

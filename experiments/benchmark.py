@@ -1,0 +1,68 @@
+"""The generalisation benchmark: ``python -m experiments.benchmark`` (Hydra).
+
+Without ``-m`` a comma list (``families=plain,bays``, ``policies=ours,mcl``, ``faults=drift,
+clutter``) is batched in ONE process. With ``-m`` Hydra launches one job per value (basic,
+joblib, or a cluster launcher), each writing its ``runs.csv`` into its job folder, and
+``python -m experiments.merge_benchmark multirun/benchmark/<date>/<time>`` builds the same
+tables from them.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import hydra
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from mfcl_jax.bench.config import BenchmarkConfig
+
+LIST_KEYS = ("families", "policies", "faults")
+
+ConfigStore.instance().store(name="benchmark_schema", node=BenchmarkConfig)
+
+
+def batch_comma_lists(argv: list[str]) -> list[str]:
+    """Rewrites ``key=a,b`` to ``key=[a,b]`` for list keys unless Hydra runs a multirun."""
+    if any(a in ("-m", "--multirun") for a in argv):
+        return argv
+    out = []
+    for a in argv:
+        m = re.fullmatch(r"({})=([^\[\]]*)".format("|".join(LIST_KEYS)), a)
+        out.append(f"{m.group(1)}=[{m.group(2)}]" if m else a)
+    return out
+
+
+@hydra.main(config_path="../conf", config_name="benchmark", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from mfcl_jax.bench.config import BenchmarkError
+    from mfcl_jax.bench.main import run_benchmark
+
+    d = OmegaConf.to_container(cfg, resolve=True)
+    for k in LIST_KEYS:
+        if not isinstance(d[k], list):
+            d[k] = [d[k]]
+    bench = BenchmarkConfig(**d)
+    if HydraConfig.get().mode == RunMode.MULTIRUN:
+        bench.out = HydraConfig.get().runtime.output_dir
+    try:
+        tabs = run_benchmark(bench)
+    except BenchmarkError as e:
+        print(f"benchmark: error: {e}", file=sys.stderr)
+        sys.exit(2)
+    print(f"wrote {len(tabs)} tables to {bench.out}/")
+    if Path(bench.out).resolve() == Path("results/benchmark").resolve():
+        from mfcl_jax.study.readme import update_readme
+
+        names = update_readme("README.md", "results")
+        print(f"README.md: refreshed {len(names)} generated tables")
+
+
+if __name__ == "__main__":
+    sys.argv = batch_comma_lists(sys.argv)
+    main()

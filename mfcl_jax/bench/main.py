@@ -1,0 +1,126 @@
+"""``python -m experiments.benchmark``: the whole benchmark, and the merge of multirun jobs.
+
+``run_benchmark`` writes ``runs.csv`` (one row per run x policy x threshold set: the raw
+result every table is rebuilt from), ``labels.csv`` and the tables and figures. A multirun job
+writes the same files into its own folder; ``merge`` joins the jobs' ``runs.csv`` and rebuilds
+identical tables (``write_tables`` is the one code path from ``runs.csv`` to every table).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from mfcl_jax.bench import figures, report, suite
+from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, validate
+from mfcl_jax.bench.run import collect, decide_and_score
+from mfcl_jax.evaluate.tables import write_table
+from mfcl_jax.io.atomic import atomic_write
+
+__all__ = ["run_benchmark", "write_tables", "read_runs", "merge"]
+
+
+def _groups(cfg: BenchmarkConfig):
+    for fam in cfg.families:
+        sub = BenchmarkConfig(**{**cfg.__dict__, "families": [fam], "faults": []})
+        yield fam, (lambda s=sub: suite.nominal_recordings(s))
+    procedural = [f for f in cfg.families if f in PROCEDURAL]
+    for axis in cfg.faults if procedural else []:
+        sub = BenchmarkConfig(**{**cfg.__dict__, "faults": [axis]})
+        yield f"fault {axis}", (lambda s=sub: suite.fault_recordings(s))
+
+
+def run_benchmark(cfg: BenchmarkConfig) -> dict:
+    """Runs the configured benchmark and writes every output under ``cfg.out``."""
+    t_start = time.perf_counter()
+    cfg = validate(cfg)
+    ours = [p for p in cfg.policies if p not in ("single_shot", "support", "confidence",
+                                                 "gate_only", "mcl")]  # fmt: skip
+    mcl_runner = None
+    if "mcl" in cfg.policies:
+        from mfcl_jax.bench.peer import make_mcl_runner
+
+        mcl_runner = make_mcl_runner(cfg)
+    col = collect(cfg, _groups(cfg), mcl_runner)
+    scored = decide_and_score(col, cfg, ours or ["ours"])
+    runs = report.run_table(scored, col.labels)
+    keep = set(cfg.policies)
+    runs = runs[runs["policy"].isin(keep)]
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / "runs.csv", runs.to_csv(index=False, float_format="%.6g"))
+    runs = read_runs([out])  # tables come from the file, as in ``merge``: identical tables
+    labels = runs.drop_duplicates("name")[
+        ["name", "family", "fault", "level", "identifiable", "oracle_k", "n_alternatives"]
+    ]
+    atomic_write(out / "labels.csv", labels.to_csv(index=False))
+    col.tick("total", time.perf_counter() - t_start)
+    tm = pd.DataFrame([dict(stage=k, seconds=round(v, 2)) for k, v in col.timings.items()])
+    write_table(tm, out, "timings")
+    tables = write_tables(runs, out, cfg.policies, cfg.figures)
+    if cfg.figures:
+        _pictures(cfg, out)
+    return tables
+
+
+def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
+    """Every table (and figure) from the run table."""
+    out = Path(out)
+    pols = [p for p in policies if p in set(runs["policy"])]
+    tabs = {"families": report.family_table(runs, pols)}
+    tabs["overall"] = tabs["families"][tabs["families"]["family"] == "all"].drop(columns="family")
+    tabs["kinds"] = report.family_table(runs, pols, by="kind")
+    tabs["risk_coverage"] = report.risk_coverage(runs, pols)
+    for axis in FAULTS:
+        t = report.fault_table(runs, axis, pols)
+        if not t.empty:
+            tabs[f"faults/{axis}"] = t
+    ffl = report.first_false_level(runs, pols)
+    if not ffl.empty:
+        tabs["faults/first_false_level"] = ffl
+    for name, df in tabs.items():
+        write_table(df, out / Path(name).parent, Path(name).name)
+    if draw:
+        figures.save(figures.risk_coverage_figure(tabs["risk_coverage"]), out / "risk_coverage.png")
+        for axis in FAULTS:
+            if f"faults/{axis}" in tabs:
+                fig = figures.fault_figure(tabs[f"faults/{axis}"], axis)
+                figures.save(fig, out / "faults" / f"{axis}.png")
+    return tabs
+
+
+def _pictures(cfg: BenchmarkConfig, out: Path) -> None:
+    """One picture per family (seed 0) with its walks drawn."""
+    from mfcl_jax.floorplan import families
+
+    for fam in cfg.families:
+        if fam in PROCEDURAL:
+            families.plot_family(families.make_scene(fam, 0), out / "families" / f"{fam}.png")
+
+
+def read_runs(job_dirs) -> pd.DataFrame:
+    """The ``runs.csv`` of one or more output folders, joined."""
+    parts = []
+    for d in job_dirs:
+        f = Path(d) / "runs.csv"
+        if not f.is_file():
+            raise FileNotFoundError(f"merge: {f} not found (did the job finish?)")
+        parts.append(pd.read_csv(f, dtype={"fault": str, "level": str}, keep_default_na=False,
+                                 na_values=[""]))  # fmt: skip
+    runs = pd.concat(parts, ignore_index=True)
+    runs["fault"] = runs["fault"].fillna("")
+    runs["level"] = runs["level"].fillna("")
+    for c in ("committed", "any_false", "correct_run", "identifiable"):
+        runs[c] = runs[c].astype(bool)
+    return runs
+
+
+def merge(job_dirs, out, policies=None) -> dict:
+    """Joins multirun jobs' ``runs.csv`` and rebuilds every table."""
+    runs = read_runs(job_dirs)
+    policies = policies or list(dict.fromkeys(runs["policy"]))
+    print(f"merge: {len(job_dirs)} jobs, {runs['name'].nunique()} runs", file=sys.stderr)
+    return write_tables(runs, out, policies)

@@ -1,0 +1,158 @@
+"""The robot's path: a scan sequence localized window by window against one floor plan.
+
+The same pieces as the study and the benchmark: windows are cut by ``windows`` (causally: a
+window's bounds depend only on the scans up to its end, so the stream emits exactly the batch
+windows), registered by the one front-end driver (``frontend.driver.FrontEnd``, one submap per
+call) and decided by the streaming decision driver (``decision.stream``), which evaluates the
+batch path's kernel at the newest prefix. Ground truth never enters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from mfcl_jax import windows as W
+from mfcl_jax.batch import bucket
+from mfcl_jax.decision import DecisionParams, SelectiveInitializer, gate_maps
+from mfcl_jax.decision.stream import Decision
+from mfcl_jax.frontend import FrontendParams
+from mfcl_jax.frontend.driver import FrontEnd
+
+__all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize"]
+
+
+@dataclass(frozen=True)
+class LocalizeParams:
+    """Settings of the localization path (defaults: the study's and the paper's).
+
+    Attributes:
+        window: how scans are cut into submaps (``d_s``, step, voxel, crop, capacity).
+        frontend: front-end parameters (static; one compilation per value).
+        decision: decision thresholds (``None``: paper defaults).
+    """
+
+    window: W.WindowParams = field(default_factory=W.WindowParams)
+    frontend: FrontendParams = field(default_factory=FrontendParams)
+    decision: DecisionParams | None = None
+
+    @property
+    def d_s(self) -> float:
+        return self.window.d_s
+
+    def with_d_s(self, d_s: float) -> LocalizeParams:
+        return replace(self, window=replace(self.window, d_s=float(d_s)))
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """One window: where it lies in the input, what the front-end saw, the decision.
+
+    Attributes:
+        decision: the ``Decision`` at this prefix (``decision.k`` is the 1-based window).
+        first, last: indices of the window's first and last scan in the input sequence.
+        t: time of the last scan (the decision's time).
+        X: ``(3,)`` odometry pose of the last scan, ``^L T_{S_k}``.
+        n_points: points in the submap after thinning.
+        voxel: voxel edge used (m); larger than the configured one when re-thinned.
+        n_candidates: valid candidates from the front-end.
+        frontend_reason: ``batch.REASONS`` key (0 when candidates exist).
+        rethinned: the window was thinned with a coarser voxel to fit the capacity.
+    """
+
+    decision: Decision
+    first: int
+    last: int
+    t: float
+    X: np.ndarray
+    n_points: int
+    voxel: float
+    n_candidates: int
+    frontend_reason: int
+    rethinned: bool = False
+
+    def status(self) -> str:
+        """One human-readable status line."""
+        d = self.decision
+        g = d.diagnostics
+        if d.state == "COMMIT":
+            x, y, yaw = d.anchor
+            anchor = f"({x:.2f}, {y:.2f}, {np.rad2deg(yaw):.1f} deg)"
+        else:
+            anchor = "-"
+        tau = "-" if d.tau is None else f"({d.tau[0]:.2f}, {d.tau[1]:.2f})"
+        kind = f" {d.kind}" if d.kind else ""
+        why = f" [{g.get('reason')}]" if g.get("reason") else ""
+        thin = f" rethinned voxel={self.voxel:.2f}" if self.rethinned else ""
+        return (
+            f"k={d.k:3d} t={self.t:10.2f} {d.state:9s}{kind} anchor={anchor} "
+            f"B1={g['B1']} B2={g['B2']} margin={g['margin']} tau={tau} "
+            f"pts={self.n_points}{thin} cands={self.n_candidates}{why}"
+        )
+
+
+class Localizer:
+    """Floor-plan state (features, gate maps, the compiled front-end) built once, then any
+    number of sequences localized against it.
+
+    Args:
+        floorplan: the ``Floorplan`` (frame B).
+        params: ``LocalizeParams``.
+    """
+
+    def __init__(self, floorplan, params: LocalizeParams | None = None):
+        self.floorplan = floorplan
+        self.params = params or LocalizeParams()
+        self._fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
+        self._maps = gate_maps(floorplan)
+
+    def windows(self, seq) -> W.Windows:
+        """The windows of ``seq`` (as the batch path cuts them)."""
+        return W.cut(seq, self.params.window)
+
+    def n_windows(self, seq) -> int:
+        p = self.params.window
+        kf = W.keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
+        return len(W.window_bounds(W.travelled(seq.odometry[kf]), p.d_s, p.step))
+
+    def run(self, seq, variant: str = "ours") -> Iterator[WindowResult]:
+        """Streams the windows of ``seq``; yields one ``WindowResult`` per window."""
+        w = self.windows(seq)
+        kf = w.keyframes
+        init = SelectiveInitializer(
+            self._maps,
+            self.params.decision,
+            variant=variant,
+            k_cap=bucket(len(w), 8),
+            j_cap=self.params.frontend.J,
+            t_cap=bucket(len(kf), 256),
+        )
+        prev_end = -1
+        cap = self.params.window.capacity
+        for k, (j0, j1) in enumerate(w.bounds):
+            one = W.window(w, k)
+            wb = W.pack([(seq, one, 0)], capacity=bucket(cap, 256))
+            cand = self._fe.register(wb.submaps, wb.building, keep=True)
+            m = cand.mask[0]
+            traj = seq.odometry[kf[prev_end + 1 : j1 + 1]]
+            prev_end = int(j1)
+            dec = init.update(cand.pose[0][m], cand.score[0][m], w.X[k], traj, t=float(w.t[k]))
+            yield WindowResult(
+                decision=dec,
+                first=int(kf[j0]),
+                last=int(kf[j1]),
+                t=float(w.t[k]),
+                X=np.asarray(w.X[k]),
+                n_points=len(w.points[k]),
+                voxel=float(w.voxel[k]),
+                n_candidates=int(m.sum()),
+                frontend_reason=int(cand.reason[0]),
+                rethinned=bool(W.rethinned(w)[k]),
+            )
+
+
+def localize(floorplan, seq, params: LocalizeParams | None = None) -> list:
+    """All ``WindowResult``s of one sequence (convenience wrapper of ``Localizer.run``)."""
+    return list(Localizer(floorplan, params).run(seq))

@@ -20,13 +20,15 @@ Written from the descriptions of Voronoi-graph segmentations (Thrun 1998; Borman
    cut position (or reaches another node) and has no doorway within ``door_arm`` beyond it
    (an arm through a nearby doorway is a side room: a corridor with office doors is not cut
    at every door). Each open arm is cut perpendicular to the skeleton ``junction_margin``
-   past the node's clearance, at the first cell within ``min_arm`` where both rays meet a
-   wall within 1.25 times the local clearance (a corridor there; an arm opening into a hall
-   is not cut). The crossing between the cuts becomes a region of its own.
+   past the node's clearance, at the first cell within ``min_arm`` that is corridor-like:
+   clearance at most ``corridor_width / 2`` and both rays meet a wall within 1.25 times it
+   (an arm opening into a hall, or a branch running diagonally through a room, is not cut).
+   The crossing between the cuts becomes a region of its own.
 5. Regions: the 4-connected pieces of the core minus the cuts, grown over all the interior
    free cells nearest-to-the-core first, so every interior free cell joins exactly one
    region. Regions under ``min_room_area`` join, smallest first, the neighbour they share the
-   most boundary with; a small piece with no neighbour is a speck, not interior.
+   most boundary with. Not interior: a small region with no neighbour, and free pieces
+   without a core cell (specks and rays no disk of radius ``robot_radius`` fits in).
 
 Long straight corridors are not cut at fixed intervals: equal pieces of one corridor would be
 translated copies of each other, which the gate's congruent-room probe reads as a symmetry of
@@ -79,7 +81,8 @@ def segment_rooms(
             border through the walls sealed by ``seal`` (m) is outside and gets no room.
         robot_radius: radius (m) of the disk that sweeps the core.
         max_door_width, narrowing, window, side_reach: doorway test (module doc; metres).
-        junction_margin, min_arm, door_arm: junction test and cuts (module doc; metres).
+        junction_margin, min_arm, door_arm, corridor_width: junction test and cuts (module
+            doc; metres).
         clutter_area: smaller enclosed non-free pockets (m^2) are clutter, not walls.
         spur_factor, spur_extra: skeleton spur pruning (``skeleton.skeleton_graph``).
         min_room_area: smaller regions (m^2) join a neighbour.

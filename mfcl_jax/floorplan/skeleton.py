@@ -96,11 +96,10 @@ class Branch:
 
 @dataclass
 class SkeletonGraph:
+    """Junction nodes by id (>= 1) and the branches between them."""
+
     nodes: dict[int, Node]
     branches: list[Branch]
-
-    def degree(self, node: int) -> int:
-        return sum((b.ends[0] == node) + (b.ends[1] == node) for b in self.branches)
 
 
 def _order(cells: set[tuple[int, int]]) -> list[tuple[int, int]]:
@@ -136,14 +135,14 @@ def skeleton_graph(
     """
     n_nb = ndimage.convolve(skel.astype(np.int32), np.ones((3, 3), np.int32), mode="constant")
     junction = skel & (n_nb - 1 >= 3)
-    jlab, n_j = ndimage.label(junction, structure=np.ones((3, 3)))
+    jlab, _ = ndimage.label(junction, structure=np.ones((3, 3)))
     nodes = {}
     for i, sl in enumerate(ndimage.find_objects(jlab), start=1):
         rr, cc = np.nonzero(jlab[sl] == i)
         cells = np.stack([rr + sl[0].start, cc + sl[1].start], 1)
         k = int(np.argmax(dist[cells[:, 0], cells[:, 1]]))
         nodes[i] = Node(cells, (int(cells[k, 0]), int(cells[k, 1])), float(dist[tuple(cells[k])]))
-    blab, n_b = ndimage.label(skel & ~junction, structure=np.ones((3, 3)))
+    blab, _ = ndimage.label(skel & ~junction, structure=np.ones((3, 3)))
     h, w = skel.shape
     branches = []
     for i, sl in enumerate(ndimage.find_objects(blab), start=1):
@@ -155,11 +154,11 @@ def skeleton_graph(
             win = jlab[max(r - 1, 0) : min(r + 2, h), max(c - 1, 0) : min(c + 2, w)]
             ends.append(int(win.max()) if win.max() > 0 else -1)
         if len(cells) == 1 and ends[0] > 0:
-            # A one-cell branch between two nodes touches both: find the second.
+            # A one-cell branch may touch two nodes (a link) or one (a tip).
             r, c = cells[0]
             win = jlab[max(r - 1, 0) : min(r + 2, h), max(c - 1, 0) : min(c + 2, w)]
             ids = np.unique(win[win > 0])
-            ends = [int(ids[0]), int(ids[-1])]
+            ends = [int(ids[0]), int(ids[-1]) if len(ids) > 1 else -1]
         branches.append(Branch(np.asarray(cells, np.int64).reshape(-1, 2), tuple(ends)))
     graph = SkeletonGraph(nodes, branches)
     _dissolve(graph)
@@ -168,6 +167,7 @@ def skeleton_graph(
 
 
 def _prune(graph: SkeletonGraph, res: float, spur_factor: float, spur_extra: float) -> None:
+    """Deletes spurs (module doc), the shortest per node and round, until none is left."""
     while True:
         spurs = []
         for b in graph.branches:
@@ -179,7 +179,7 @@ def _prune(graph: SkeletonGraph, res: float, spur_factor: float, spur_extra: flo
                 spurs.append(b)
         if not spurs:
             return
-        # One spur per node and round (the shortest), so a node's last long branch survives.
+        # One spur per node and round, so that a node whose branches are all short keeps one.
         best: dict[int, Branch] = {}
         for b in spurs:
             n = max(b.ends)

@@ -36,8 +36,18 @@ def draw_floorplan(ax, fp: Floorplan, labels: bool = True, graph: bool = True) -
     import matplotlib.pyplot as plt
 
     cmap = plt.get_cmap("tab20")
-    for i, room in enumerate(fp.rooms):
-        _patch(ax, room.polygon, facecolor=cmap(i % 20), alpha=0.45, edgecolor="none", zorder=1)
+    # Rooms joined by a door never share a colour (when the graph allows: degree < 20); among
+    # the free colours the least used one, so that the picture uses all twenty.
+    colour: list[int] = []
+    used = np.zeros(20, int)
+    for i in range(len(fp.rooms)):
+        taken = {colour[j] for j in np.flatnonzero(fp.adjacency[i, :i])}
+        free = [c for c in range(20) if c not in taken] or list(range(20))
+        colour.append(min(free, key=lambda c: (used[c], c)))
+        used[colour[-1]] += 1
+    for room, c in zip(fp.rooms, colour, strict=True):
+        face = cmap((2 * c + (c // 10)) % 20)  # the ten strong tab20 colours first
+        _patch(ax, room.polygon, facecolor=face, alpha=0.45, edgecolor="none", zorder=1)
     _patch(ax, fp.wall_solid, facecolor="0.1", edgecolor="0.1", linewidth=0.3, zorder=2)
     for d in fp.doors:
         s = np.asarray(d.segment)

@@ -1,4 +1,4 @@
-"""ROS map_server occupancy maps as floor plans, with a room segmentation of the free space.
+"""ROS map_server occupancy maps as floor plans.
 
 A map is a YAML file (``image, resolution, origin, negate, occupied_thresh, free_thresh``) and
 a greyscale image. Cells are classified the map_server way: ``p = (255 - v) / 255`` (or
@@ -7,21 +7,10 @@ unknown otherwise. Image row 0 is the top of the map; ``origin`` is the world po
 lower-left pixel corner (its yaw, when non-zero, rotates the whole plan).
 
 Walls: connected occupied regions, vectorised cell-exactly and simplified to ``res / 2``.
-
-Rooms (a distance-transform segmentation, in the spirit of the morphological segmentations of
-Bormann et al. 2016, written from that description):
-1. ``D`` = distance (m) from every free cell to the nearest non-free cell.
-2. Room cores are the connected components of ``D > core_clearance``: a door of width ``w``
-   has clearance at most ``w / 2``, so doors narrower than ``2 * core_clearance`` cut the free
-   space into cores while rooms and corridors keep theirs. Cores under ``min_core_area`` are
-   dropped (clutter pockets).
-3. The cores grow back over the free space one cell ring at a time (a geodesic Voronoi
-   partition), so each free cell joins the core it reaches first through free space.
-4. Neighbouring regions whose shared boundary is longer than ``max_door_width`` are the same
-   room split by clutter and are merged; regions under ``min_room_area`` join the neighbour
-   they share most boundary with.
-5. Every remaining shared boundary is a door: a segment across the passage between the two
-   rooms, so the room graph comes from the map alone.
+Rooms: ``roomseg.segment_rooms`` (rooms and corridor segments, split at doorways and
+junctions), each vectorised cell-exactly (wall or unknown pockets under 1 m^2 inside it
+filled), so every labelled free cell's centre lies in exactly its room's polygon. Doors: one
+per pair of rooms that share a boundary, a segment along the longest contiguous piece of it.
 """
 
 from __future__ import annotations
@@ -34,12 +23,12 @@ import shapely
 import shapely.affinity
 import yaml
 from scipy import ndimage
-from shapely.geometry import Polygon, box
-from shapely.ops import unary_union
+from shapely.geometry import Polygon
 
 from mfcl_jax.floorplan.model import Door, Floorplan, FloorplanError, Room
+from mfcl_jax.floorplan.roomseg import segment_rooms
 
-__all__ = ["load_rosmap", "read_rosmap_grid", "segment_rooms"]
+__all__ = ["load_rosmap", "read_rosmap_grid"]
 
 _REQUIRED = ("image", "resolution", "origin")
 
@@ -114,129 +103,40 @@ def read_rosmap_grid(yaml_path, free_thresh: float | None = None, occupied_thres
     return occ, free, float(res), tuple(origin)
 
 
-# ---------------------------------------------------------------------- segmentation
-def segment_rooms(
-    free: np.ndarray,
-    res: float,
-    core_clearance: float = 0.6,
-    min_core_area: float = 1.0,
-    max_door_width: float = 1.6,
-    min_room_area: float = 3.0,
-    seal: float = 0.5,
-    occ: np.ndarray | None = None,
-) -> np.ndarray:
-    """Partitions the free cells into rooms.
-
-    Args:
-        free: ``(H, W)`` bool free space.
-        res: cell size (m).
-        core_clearance: clearance (m) a cell needs to seed a room core.
-        min_core_area: smallest core kept (m^2).
-        max_door_width: longer shared boundaries (m) merge two regions into one room.
-        min_room_area: smaller regions (m^2) join their main neighbour.
-        seal: wall gaps up to ``2 * seal`` (m) count as closed when telling the building's
-            inside from the free space around it.
-        occ: ``(H, W)`` bool occupied cells; when given, free space connected to the map
-            border through the sealed walls is outside the building and gets no room.
-
-    Returns:
-        ``(H, W)`` int32 room labels ``0..R-1``, -1 outside the free space.
-    """
-    if occ is not None and seal > 0:
-        free = free & ~_outside(free, occ, res, seal)
-    dist = ndimage.distance_transform_edt(free) * res
-    cores, n = ndimage.label(dist > core_clearance)
-    if n:
-        sizes = ndimage.sum_labels(np.ones_like(cores), cores, np.arange(1, n + 1)) * res * res
-        keep = np.concatenate([[0], np.where(sizes >= min_core_area, np.arange(1, n + 1), 0)])
-        cores = keep[cores]
-    lab = cores.astype(np.int32)
-    # Geodesic growth: one ring of cells per step, only through free space.
-    todo = free & (lab == 0)
-    while todo.any():
-        grown = ndimage.grey_dilation(lab, size=(3, 3))
-        new = todo & (grown > 0)
-        if not new.any():
-            break
-        lab[new] = grown[new]
-        todo &= ~new
-    lab = _merge_regions(lab, res, max_door_width, min_room_area)
-    _, inv = np.unique(lab, return_inverse=True)
-    out = inv.reshape(lab.shape).astype(np.int32) - (1 if (lab == 0).any() else 0)
-    out[lab == 0] = -1
-    return out
-
-
-def _outside(free, occ, res, seal) -> np.ndarray:
-    """Free cells reachable from the map border without passing within ``seal`` of a wall."""
-    k = max(1, int(round(seal / res)))
-    disk = np.hypot(*np.mgrid[-k : k + 1, -k : k + 1]) <= k
-    open_space = free & ~ndimage.binary_dilation(occ, structure=disk)
-    lab, _ = ndimage.label(open_space)
-    border = np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))
-    out = np.isin(lab, border[border > 0])
-    # Give the sealed band on the outer side of the walls back to the outside.
-    return ndimage.binary_dilation(out, iterations=k, mask=free)
-
-
-def _boundaries(lab: np.ndarray) -> dict[tuple[int, int], int]:
-    """Number of 4-neighbour cell pairs between each pair of labels (> 0)."""
-    pairs: dict[tuple[int, int], int] = {}
-    for a, b in ((lab[:, :-1], lab[:, 1:]), (lab[:-1, :], lab[1:, :])):
-        m = (a > 0) & (b > 0) & (a != b)
-        if not m.any():
-            continue
-        lo, hi = np.minimum(a[m], b[m]), np.maximum(a[m], b[m])
-        keys, counts = np.unique(np.stack([lo, hi], 1), axis=0, return_counts=True)
-        for (i, j), c in zip(keys.tolist(), counts.tolist(), strict=True):
-            pairs[(i, j)] = pairs.get((i, j), 0) + c
-    return pairs
-
-
-def _merge_regions(lab, res, max_door_width, min_room_area):
-    while True:
-        pairs = _boundaries(lab)
-        ids = np.unique(lab[lab > 0])
-        sizes = ndimage.sum_labels(np.ones_like(lab), lab, ids) * res * res
-        area = dict(zip(ids.tolist(), sizes.tolist(), strict=True))
-        target = None
-        wide = [(c, k) for k, c in pairs.items() if c * res > max_door_width]
-        if wide:
-            _, (i, j) = max(wide)
-            target = (j, i)
-        else:
-            small = sorted((area[i], i) for i in ids.tolist() if area[i] < min_room_area)
-            for _, i in small:
-                nb = [(c, j if k == i else k) for (k, j), c in pairs.items() if i in (k, j)]
-                if nb:
-                    target = (i, max(nb)[1])
-                    break
-        if target is None:
-            return lab
-        lab[lab == target[0]] = target[1]
-
-
 # ---------------------------------------------------------------------- vectorising
 def _cells_to_polygons(mask: np.ndarray, res: float) -> list[Polygon]:
     """Exact polygon(s) of a cell mask (grid coordinates scaled by ``res``), via row runs."""
-    boxes = []
-    for r in np.flatnonzero(mask.any(1)):
-        row = np.concatenate([[0], mask[r].astype(np.int8), [0]])
-        d = np.diff(row)
-        for s, e in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True):
-            boxes.append(box(s * res, r * res, e * res, (r + 1) * res))
-    if not boxes:
+    edge = np.diff(np.pad(mask.astype(np.int8), ((0, 0), (1, 1))), axis=1)
+    rows, start = np.nonzero(edge == 1)
+    _, end = np.nonzero(edge == -1)  # row-major order: the runs pair up
+    if not rows.size:
         return []
-    geom = unary_union(boxes)
+    boxes = shapely.box(start * res, rows * res, end * res, (rows + 1) * res)
+    geom = shapely.simplify(shapely.union_all(boxes), 0.0)  # drops collinear vertices only
     return [g for g in shapely.get_parts(geom) if isinstance(g, Polygon)]
 
 
-def _clean(poly: Polygon, tol: float, min_hole: float) -> list[Polygon]:
-    holes = [h for h in poly.interiors if Polygon(h).area >= min_hole]
-    poly = Polygon(poly.exterior, holes).simplify(tol)
+def _simplified(poly: Polygon, tol: float) -> list[Polygon]:
+    poly = poly.simplify(tol)
     if not poly.is_valid:
         poly = shapely.make_valid(poly)
     return [g for g in shapely.get_parts(poly) if isinstance(g, Polygon) and g.area > 0]
+
+
+def _room_polygon(lab: np.ndarray, r: int, res: float, min_hole: float) -> Polygon:
+    """Cell-exact polygon of room ``r`` (4-connected), with small pockets of non-free cells
+    filled (pockets holding another room's cells stay holes)."""
+    rows, cols = np.nonzero(lab == r)
+    sl = (slice(rows.min(), rows.max() + 1), slice(cols.min(), cols.max() + 1))
+    mask = lab[sl] == r
+    holes, n = ndimage.label(ndimage.binary_fill_holes(mask) & ~mask)
+    if n:
+        size = ndimage.sum_labels(np.ones_like(holes), holes, np.arange(1, n + 1)) * res * res
+        other = ndimage.maximum(lab[sl] >= 0, holes, np.arange(1, n + 1)).astype(bool)
+        fill = np.concatenate([[False], (size < min_hole) & ~other])
+        mask |= fill[holes]
+    (poly,) = _cells_to_polygons(mask, res)
+    return shapely.affinity.translate(poly, sl[1].start * res, sl[0].start * res)
 
 
 def load_rosmap(
@@ -248,7 +148,7 @@ def load_rosmap(
         yaml_path: the map's YAML file.
         free_thresh: overrides the YAML's ``free_thresh`` (explicitly, never silently).
         occupied_thresh: overrides the YAML's ``occupied_thresh``.
-        **segmentation: overrides for ``segment_rooms`` parameters.
+        **segmentation: overrides for ``roomseg.segment_rooms`` parameters.
 
     Returns:
         A ``Floorplan`` with ``wall_polygons`` from the occupied cells, rooms ``r00``, ``r01``,
@@ -273,33 +173,26 @@ def load_rosmap(
             continue
         off = (sl[1].start * res, sl[0].start * res)
         for p in _cells_to_polygons(sub, res):
-            for q in _clean(p, res / 2, 0.0):
+            for q in _simplified(p, res / 2):
                 walls.append(shapely.affinity.translate(q, *off))
     segmentation.setdefault("occ", occ)
     lab = segment_rooms(free, res, **segmentation)
     n_rooms = int(lab.max()) + 1
     if n_rooms == 0:
         raise FloorplanError(f"{path}: the free space has no room wider than a corridor core")
-    rooms = []
-    for r in range(n_rooms):
-        polys = _cells_to_polygons(lab == r, res)
-        poly = max(polys, key=lambda p: p.area)
-        rooms.append(Room(f"r{r:02d}", max(_clean(poly, res / 2, 1.0), key=lambda p: p.area)))
+    rooms = [Room(f"r{r:02d}", _room_polygon(lab, r, res, 1.0)) for r in range(n_rooms)]
     doors = _doors_from_labels(lab, res, rooms)
+    c, s = math.cos(yaw), math.sin(yaw)
+    rot_t = np.array([[c, s], [-s, c]])  # row vectors: q @ rot_t rotates by yaw
 
     def to_world(g):
-        import shapely.affinity as aff
+        return shapely.transform(g, lambda q: q @ rot_t + [ox, oy])
 
-        g = aff.rotate(g, yaw, origin=(0, 0), use_radians=True)
-        return aff.translate(g, ox, oy)
-
-    c, s = math.cos(yaw), math.sin(yaw)
-    rot = np.array([[c, -s], [s, c]])
     return Floorplan(
         walls=np.zeros((0, 2, 2)),
         thickness=np.zeros((0,)),
         rooms=tuple(Room(r.name, to_world(r.polygon)) for r in rooms),
-        doors=tuple(Door(d.segment @ rot.T + [ox, oy], d.rooms) for d in doors),
+        doors=tuple(Door(d.segment @ rot_t + [ox, oy], d.rooms) for d in doors),
         wall_polygons=tuple(to_world(w) for w in walls),
         name=path.stem,
         source=str(path),
@@ -307,29 +200,37 @@ def load_rosmap(
 
 
 def _doors_from_labels(lab, res, rooms) -> list[Door]:
-    """One door per adjacent room pair: a segment along their shared cell boundary."""
-    pts: dict[tuple[int, int], list] = {}
-    h, w = lab.shape
+    """One door per adjacent room pair: a segment along their longest contiguous boundary."""
+    keys, pts = [], []
     for axis in (0, 1):
         a = lab[:, :-1] if axis == 1 else lab[:-1, :]
         b = lab[:, 1:] if axis == 1 else lab[1:, :]
         m = (a >= 0) & (b >= 0) & (a != b)
         rr, cc = np.nonzero(m)
-        # Midpoint of the shared cell edge, in metres.
-        x = (cc + (1.0 if axis == 1 else 0.5)) * res
-        y = (rr + (1.0 if axis == 0 else 0.5)) * res
-        for i, j, px, py in zip(a[m], b[m], x, y, strict=True):
-            pts.setdefault((min(i, j), max(i, j)), []).append((px, py))
+        keys.append(np.stack([np.minimum(a[m], b[m]), np.maximum(a[m], b[m])], 1))
+        # Shared cell edge midpoints in half cells: (2 col + 2, 2 row + 1) or (2 col + 1, ...).
+        pts.append(np.stack([2 * cc + 1 + axis, 2 * rr + 2 - axis], 1))
+    keys, pts = np.concatenate(keys), np.concatenate(pts)
+    order = np.lexsort((keys[:, 1], keys[:, 0]))
+    keys, pts = keys[order], pts[order]
+    cuts = np.flatnonzero(np.any(np.diff(keys, axis=0) != 0, axis=1)) + 1
     doors = []
-    for (i, j), p in sorted(pts.items()):
-        p = np.asarray(p)
-        c = p.mean(0)
-        if len(p) > 1:
-            u = np.linalg.svd(p - c, full_matrices=False)[2][0]
-        else:
-            u = np.array([1.0, 0.0])
-        proj = (p - c) @ u
+    for k, p in zip(np.split(keys, cuts), np.split(pts, cuts), strict=True):
+        if not len(k):
+            continue
+        lo = p.min(0)
+        img = np.zeros(tuple(p.max(0) - lo + 1), bool)
+        img[tuple((p - lo).T)] = True
+        # Edges of one boundary piece are at most 2 half cells apart.
+        pieces, _ = ndimage.label(ndimage.binary_dilation(img), structure=np.ones((3, 3)))
+        ids = pieces[tuple((p - lo).T)]
+        q = p[ids == np.bincount(ids).argmax()] * (res / 2)
+        c = q.mean(0)
+        u = np.linalg.svd(q - c, full_matrices=False)[2][0] if len(q) > 1 else np.array([1.0, 0])
+        proj = (q - c) @ u
         half = max((proj.max() - proj.min()) / 2, res / 2)
-        seg = np.stack([c - u * half, c + u * half])
+        mid = c + u * (proj.max() + proj.min()) / 2
+        i, j = int(k[0, 0]), int(k[0, 1])
+        seg = np.stack([mid - u * half, mid + u * half])
         doors.append(Door(seg, (rooms[i].name, rooms[j].name)))
     return doors

@@ -131,15 +131,19 @@ def simulate_dataset(
     """Writes a dataset folder (atomically) simulated along ``waypoints`` in ``floorplan``.
 
     Args:
-        floorplan: a ``Floorplan``.
-        waypoints: ``(P, 2)`` polyline in B.
+        floorplan: a ``Floorplan`` (possibly moved to a local origin, ``Floorplan.offset``).
+        waypoints: ``(P, 2)`` polyline in B, in the plan's file frame; the ground truth is
+            written in that frame too.
         out: the dataset folder to create.
         seed: LiDAR noise/dropout and odometry drift seed.
         params: ``SimParams``.
         overwrite: replace an existing folder.
         where: name of the waypoint source, for messages.
     """
-    wp = np.asarray(waypoints, np.float64)
+    from mfcl_jax.floorplan.origin import to_local_frame, to_plan_frame
+
+    wp = to_local_frame(waypoints, floorplan.offset)
     check_waypoints(floorplan, wp, where)
     t, true, odo, scans = simulate_scans(floorplan, wp, seed, params)
-    return write_dataset(out, floorplan, t, scans, odo, groundtruth=true, overwrite=overwrite)
+    gt = to_plan_frame(true, floorplan.offset)
+    return write_dataset(out, floorplan, t, scans, odo, groundtruth=gt, overwrite=overwrite)

@@ -60,7 +60,7 @@ def _check_target(path: Path, folder: bool) -> None:
         )
     try:
         mode = path.stat().st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # the folder check below says why
         return
     except OSError as e:
         raise _error(f"{path}: cannot inspect the output ({e.strerror})") from None

@@ -7,11 +7,11 @@ otherwise.
 A common trap: maps saved by some tools write unknown space as grey 205 or 206, and
 ``(255 - 206) / 255 = 0.192`` falls just under the usual ``free_thresh: 0.196``, so the
 unknown space around and between the rooms reads as free (willow-full is such a map). When
-the most common grey level (neither black nor white) covers at least ``GREY_SHARE`` of the
-image, is classified free, and lies within ``GREY_MARGIN`` of ``free_thresh``, a
-``FloorplanWarning`` gives the level, its share, its ``p`` and the ``--free-thresh`` value
-that would read it as unknown. Nothing is changed silently: the thresholds stay the file's
-unless overridden explicitly.
+the most common grey level that is read as free but lies within ``GREY_MARGIN`` under
+``free_thresh`` covers at least ``GREY_SHARE`` of the image, a ``FloorplanWarning`` gives
+the level, its share, its ``p`` and the ``--free-thresh`` value that would read it as
+unknown. Nothing is changed silently: the thresholds stay the file's unless overridden
+explicitly (``load_rosmap(free_thresh=...)``, ``mfcl ... --free-thresh``).
 """
 
 from __future__ import annotations
@@ -122,13 +122,13 @@ def unknown_grey_read_as_free(v: np.ndarray, free_t: float, negate: bool = False
         common, read as free, and close under ``free_t``.
     """
     levels, counts = np.unique(np.asarray(v, np.uint8), return_counts=True)
-    mid = (levels > 0) & (levels < 255)
-    if not mid.any():
+    p_all = levels / 255.0 if negate else (255.0 - levels) / 255.0
+    near = (p_all >= free_t - GREY_MARGIN) & (p_all < free_t)
+    if not near.any():
         return None
-    j = int(np.argmax(np.where(mid, counts, 0)))
-    level, share = int(levels[j]), counts[j] / v.size
-    p = level / 255.0 if negate else (255.0 - level) / 255.0
-    if share < GREY_SHARE or not (free_t - GREY_MARGIN <= p < free_t):
+    j = int(np.argmax(np.where(near, counts, 0)))
+    level, share, p = int(levels[j]), counts[j] / v.size, float(p_all[j])
+    if share < GREY_SHARE:
         return None
     suggest = math.floor(p * 100) / 100
     if suggest >= p:

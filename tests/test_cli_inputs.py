@@ -169,6 +169,9 @@ def test_input_flag_errors(tmp_path, capsys, recorder):
     _fails(["localize", ds, "--tf-static", "--out", out], capsys, "--tf-static", "give --bag")
     _fails(["localize", ds, "--carmen", log, "--out", out], capsys, "DATASET and --carmen")
     _fails(["localize", "--carmen", log, "--out", out], capsys, "log.log", "--floorplan")
+    plan = save_geojson(_plan(), tmp_path / "p.geojson")
+    _fails(["localize", ds, "--floorplan", plan, "--free-thresh", "0.19", "--out", out], capsys,
+           "p.geojson: free_thresh=0.19 applies to ROS maps (.yaml) only")  # fmt: skip
     with pytest.raises(SystemExit) as e:
         main(["localize", str(ds), "--lidar-offset", "1,2"])
     assert e.value.code == 2

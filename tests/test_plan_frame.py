@@ -70,6 +70,22 @@ def test_far_plan_gives_the_same_rasters_and_features(tmp_path, shift):
     assert again["features"][0]["geometry"]["coordinates"][0] == [shift[0], shift[1]]
 
 
+def test_decimal_plan_far_away_gives_the_same_rasters(tmp_path):
+    """Coordinates in decimal metres (11.35) cannot be held exactly at 5e6 m; the loader's
+    rounding to 10 nm gives back the plan drawn near the origin, cell for cell."""
+    from mfcl_jax.floorplan.scenes import get_scene
+
+    plan = get_scene("three_rooms").floorplan
+    near = load_floorplan(save_geojson(plan, tmp_path / "near.geojson"))
+    far = load_floorplan(
+        save_geojson(plan.transformed((500000.0, 5e6, 0.0)), tmp_path / "f.geojson")
+    )
+    assert far.bounds == near.bounds and np.array_equal(far.walls, near.walls)
+    r_near, r_far = near.rasterize(), far.rasterize()
+    for name in ("origin", "dist", "wall", "room_id", "inside"):
+        np.testing.assert_array_equal(getattr(r_far, name), getattr(r_near, name), err_msg=name)
+
+
 def test_offset_rule_and_precision():
     near = dyadic_plan()
     assert local_origin(near) is near and not near.offset.any()

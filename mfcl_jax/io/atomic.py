@@ -8,6 +8,10 @@ repeats the per-file checks and writes through a temporary file in the target fo
 renamed into place: a reader never sees a half-written file, a failure leaves nothing behind,
 and the file gets the permissions of an ordinary new file (``0o666`` less the umask;
 ``mkstemp`` alone would leave ``0o600``).
+
+Only the last component of the output path may not be a link: replacing a link would
+either redirect the write to wherever it points or silently drop the link. Folders on the
+way may be links (a home folder often is one).
 """
 
 from __future__ import annotations

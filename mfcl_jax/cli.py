@@ -1,4 +1,8 @@
-"""The ``mfcl`` command (a thin shell: each command calls one package function)."""
+"""The ``mfcl`` command (a thin shell: each command calls one package function).
+
+Importing this module and ``mfcl --help`` load nothing heavy (JAX, matplotlib, SciPy,
+pandas, rosbags, IfcOpenShell): each command imports what it needs when it runs.
+"""
 
 from __future__ import annotations
 
@@ -21,17 +25,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"mfcl: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
-    """Entry point; bad inputs end with a one-line message and exit status 2, no traceback."""
+    """Entry point; bad inputs (and unwritable outputs) end with a one-line message and exit
+    status 2, no traceback; warnings print as ``mfcl: warning: ...`` lines on stderr."""
+    import warnings
+
+    args = build_parser().parse_args(argv)
     from mfcl_jax.floorplan.model import FloorplanError
     from mfcl_jax.io.errors import DataError
 
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except (FloorplanError, DataError, FileNotFoundError) as e:
-        print(f"mfcl: error: {e}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            return int(args.func(args) or 0)
+        except (FloorplanError, DataError, OSError) as e:
+            print(f"mfcl: error: {e}", file=sys.stderr)
+            return 2
 
 
 if __name__ == "__main__":

@@ -5,7 +5,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["add_floorplan_commands", "cmd_floorplan_show"]
+__all__ = ["add_floorplan_commands", "cmd_floorplan_show", "add_rosmap_flags"]
+
+
+def add_rosmap_flags(parser) -> None:
+    """``--free-thresh`` and ``--occupied-thresh``: override a ROS map's YAML thresholds."""
+    parser.add_argument(
+        "--free-thresh",
+        type=float,
+        help="ROS map only: cells with occupancy p below this are free (overrides the YAML)",
+    )
+    parser.add_argument(
+        "--occupied-thresh",
+        type=float,
+        help="ROS map only: cells with occupancy p above this are walls (overrides the YAML)",
+    )
 
 
 def add_floorplan_commands(subparsers) -> argparse.ArgumentParser:
@@ -26,6 +40,7 @@ def add_floorplan_commands(subparsers) -> argparse.ArgumentParser:
         default=1.0,
         help="IFC cutting plane above the storey elevation (m), default 1.0",
     )
+    add_rosmap_flags(show)
     show.add_argument("--out", type=Path, help="output PNG (default <model stem>.png here)")
     show.set_defaults(func=cmd_floorplan_show)
     return fp
@@ -36,13 +51,22 @@ def cmd_floorplan_show(args) -> int:
 
     import numpy as np
 
+    from mfcl_jax.floorplan.load import floorplan_files, load_floorplan
+    from mfcl_jax.io.atomic import check_output
+
+    out = args.out or Path(f"{args.model.stem}.png")
+    check_output(out, inputs=floorplan_files(args.model))
     from mfcl_jax.evaluate.plots_floorplan import show_floorplan
-    from mfcl_jax.floorplan.load import load_floorplan
 
     t0 = time.perf_counter()
-    fp = load_floorplan(args.model, storey=args.storey, cut_height=args.cut_height)
+    fp = load_floorplan(
+        args.model,
+        storey=args.storey,
+        cut_height=args.cut_height,
+        free_thresh=args.free_thresh,
+        occupied_thresh=args.occupied_thresh,
+    )
     dt = time.perf_counter() - t0
-    out = args.out or Path(f"{args.model.stem}.png")
     show_floorplan(fp, out)
     n_edges = int((fp.adjacency.sum() - len(fp.rooms)) // 2)
     print(
@@ -52,4 +76,7 @@ def cmd_floorplan_show(args) -> int:
     )
     x0, y0, x1, y1 = fp.bounds
     print(f"extent {x1 - x0:.1f} x {y1 - y0:.1f} m; picture: {out}")
+    if np.any(fp.offset != 0):
+        ox, oy = fp.offset
+        print(f"local origin: plan coordinates = picture coordinates + ({ox:.3f}, {oy:.3f})")
     return 0

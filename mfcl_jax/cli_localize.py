@@ -2,6 +2,7 @@
 
 Thin: argument parsing and printing; the work is in ``mfcl_jax.localizer``, ``mfcl_jax.score``
 and ``mfcl_jax.sources``.
+Inputs, the odometry convention and plan-frame anchors: ``mfcl_jax.cli_inputs``.
 """
 
 from __future__ import annotations
@@ -9,6 +10,9 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+
+from mfcl_jax.cli_floorplan import add_rosmap_flags
+from mfcl_jax.cli_inputs import lidar_offset_arg
 
 __all__ = ["add_localize_commands", "cmd_localize", "cmd_evaluate", "cmd_simulate"]
 
@@ -22,7 +26,7 @@ def add_localize_commands(subparsers) -> None:
         "dataset",
         type=Path,
         nargs="?",
-        help="dataset folder (floorplan.*, odometry.tum, scans/); omit with --bag",
+        help="dataset folder (floorplan.*, odometry.tum, scans/); omit with --bag/--carmen",
     )
     lo.add_argument(
         "--floorplan", type=Path, help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's"
@@ -30,6 +34,22 @@ def add_localize_commands(subparsers) -> None:
     lo.add_argument("--bag", type=Path, help="ROS1 .bag or ROS2 bag folder instead of a dataset")
     lo.add_argument("--scan-topic", default="/scan", help="LaserScan/PointCloud2 topic (/scan)")
     lo.add_argument("--odom-topic", default="/odom", help="nav_msgs/Odometry topic (/odom)")
+    lo.add_argument(
+        "--carmen", type=Path, help="CARMEN log (.log/.log.gz; its odometry columns) instead"
+    )
+    lo.add_argument(
+        "--lidar-offset",
+        type=lidar_offset_arg,
+        metavar="X,Y,YAW_DEG",
+        help="LiDAR pose in the robot base frame (bags and CARMEN logs; m, m, deg)",
+    )
+    lo.add_argument(
+        "--tf-static",
+        action="store_true",
+        help="bags: read the LiDAR mounting from /tf_static (chain --base-frame -> scan frame)",
+    )
+    lo.add_argument("--base-frame", default="base_link", help="--tf-static parent (base_link)")
+    add_rosmap_flags(lo)
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
     lo.add_argument("--storey", help="IFC storey name or elevation")
     lo.add_argument(
@@ -59,52 +79,43 @@ def add_localize_commands(subparsers) -> None:
     si.set_defaults(func=cmd_simulate)
 
 
-def _load_input(args):
-    """(floorplan, ScanSequence) from a dataset folder or a bag."""
-    from mfcl_jax.floorplan.load import load_floorplan
-    from mfcl_jax.io import DataError, load_dataset, read_bag
-    from mfcl_jax.sources.sequence import from_bag, from_dataset
-
-    if args.bag is None and args.dataset is None:
-        raise DataError("localize: give a DATASET folder or --bag B (with --floorplan F)")
-    if args.bag is not None and args.dataset is not None:
-        raise DataError(f"localize: give either DATASET ({args.dataset}) or --bag ({args.bag})")
-    fp = None
-    if args.floorplan is not None:
-        fp = load_floorplan(args.floorplan, storey=args.storey)
-    if args.bag is not None:
-        if fp is None:
-            raise DataError(f"{args.bag}: a bag has no floor plan; pass --floorplan F")
-        bag = read_bag(args.bag, args.scan_topic, args.odom_topic)
-        return fp, from_bag(bag, str(args.bag))
-    ds = load_dataset(args.dataset, storey=args.storey, floorplan=fp)
-    return ds.floorplan, from_dataset(ds)
-
-
 def cmd_localize(args) -> int:
-    from tqdm import tqdm
-
-    from mfcl_jax.io import DataError, write_decisions
-    from mfcl_jax.localizer import LocalizeParams, Localizer
+    from mfcl_jax.cli_inputs import input_paths, load_input, plan_frame_decision
+    from mfcl_jax.io import DataError, check_output
 
     if not args.d_s > 0:
         raise DataError(f"localize: --d-s must be > 0, got {args.d_s}")
     if args.out.is_dir():
         raise DataError(f"{args.out}: --out is a folder, expected a file name")
-    fp, seq = _load_input(args)
+    check_output(args.out, inputs=input_paths(args))
+    from tqdm import tqdm
+
+    from mfcl_jax.io import write_decisions
+    from mfcl_jax.localizer import LocalizeParams, Localizer
+
+    fp, seq, notes = load_input(args)
+    for note in notes:
+        print(note, file=sys.stderr)
     loc = Localizer(fp, LocalizeParams().with_d_s(args.d_s))
     n = loc.n_windows(seq)
     print(
         f"{seq.source}: {len(seq)} scans, {n} windows of {args.d_s:g} m; floor plan {fp.name}",
         file=sys.stderr,
     )
+    offset = [float(v) for v in fp.offset]
+    if any(offset):
+        print(
+            f"{fp.name}: localized in a local frame (plan = local + ({offset[0]:.3f}, "
+            f"{offset[1]:.3f})); status lines show local anchors, {args.out} plan-frame ones",
+            file=sys.stderr,
+        )
     if n == 0:
         print("no complete window: the odometry travels less than d_s", file=sys.stderr)
     decisions, first = [], None
     try:
         with tqdm(total=n, file=sys.stderr, unit="win", dynamic_ncols=True) as bar:
             for r in loc.run(seq):
-                decisions.append(json.loads(r.decision.to_json()))
+                decisions.append(plan_frame_decision(json.loads(r.decision.to_json()), offset))
                 if first is None and r.decision.state == "COMMIT":
                     first = r.decision.k
                 if not args.quiet:
@@ -176,13 +187,16 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from mfcl_jax.floorplan.load import load_floorplan
-    from mfcl_jax.io import DataError
-    from mfcl_jax.sources.simulated import simulate_dataset
-    from mfcl_jax.sources.walks import read_waypoints
+    from mfcl_jax.floorplan.load import floorplan_files, load_floorplan
+    from mfcl_jax.io import DataError, check_output
 
     if args.out.exists() and not args.overwrite:
         raise DataError(f"{args.out}: already exists (pass --overwrite to replace it)")
+    inputs = [args.trajectory, *floorplan_files(args.floorplan)]
+    check_output(args.out, inputs=inputs, folder=True)
+    from mfcl_jax.sources.simulated import simulate_dataset
+    from mfcl_jax.sources.walks import read_waypoints
+
     wp = read_waypoints(args.trajectory)
     fp = load_floorplan(args.floorplan, storey=args.storey)
     out = simulate_dataset(

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from pathlib import Path
 
 import numpy as np
 import shapely
 
 from mfcl_jax.floorplan.model import Floorplan
+from mfcl_jax.io.atomic import atomic_write
 
 __all__ = ["draw_floorplan", "show_floorplan"]
 
@@ -106,15 +106,10 @@ def show_floorplan(path_or_floorplan, out_png, storey=None, title: str | None = 
         or f"{fp.name}: {len(fp.rooms)} rooms ({area:.0f} m²), "
         f"{len(fp.wall_polygons) + len(fp.walls)} walls, {len(fp.doors)} doors"
     )
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=".png")
-    os.close(fd)
+    buf = io.BytesIO()
     try:
-        fig.savefig(tmp, dpi=150, bbox_inches="tight")
-        os.replace(tmp, out)
+        fig.savefig(buf, format="png", dpi=150, bbox_inches="tight")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return out
+    # Checked, atomic, and with the umask's permissions (mfcl_jax.io.atomic).
+    return atomic_write(out_png, buf.getvalue())

@@ -1,8 +1,21 @@
 """GeoJSON floor plans (the interchange format of ARCHITECTURE.md).
 
-A ``FeatureCollection`` in metres; each feature's ``properties.kind`` is
-``wall`` (LineString centre line with optional ``thickness``, or Polygon footprint),
-``room`` (Polygon with ``name``) or ``door`` (LineString across the opening, ``rooms: [a, b]``).
+A ``FeatureCollection`` in metres (other units: ``mfcl_jax.floorplan.geojson_units``); each
+feature's ``properties.kind`` is ``wall`` (LineString centre line with optional
+``thickness``, or Polygon footprint), ``room`` (Polygon with ``name``) or ``door``
+(LineString across the opening, ``rooms: [a, b]``; without ``rooms`` it joins the rooms it
+touches).
+
+Features without ``kind`` (a plain GIS export, e.g. from QGIS) take a default role from
+their geometry: Polygon -> room (named by ``properties.name``, else ``room_<i>`` with ``i``
+the feature index), MultiPolygon -> one room per part, named ``<name>#1``, ``<name>#2``, ...,
+LineString/MultiLineString -> wall centre lines (``thickness`` or the default). A door that
+names a multi-part room joins the part it touches (the nearest one if it touches several).
+Doors cannot be guessed from geometry: they need ``kind: door``. Other geometries without
+``kind`` are an error.
+
+Coordinates are read in float64. Saving writes plan-frame coordinates (``Floorplan.offset``
+added back), so a plan moved to a local origin saves as it was read.
 """
 
 from __future__ import annotations
@@ -11,9 +24,17 @@ import json
 from pathlib import Path
 
 import numpy as np
-from shapely.geometry import Polygon
+from shapely.geometry import LineString, Polygon
 
-from mfcl_jax.floorplan.model import DEFAULT_WALL_THICKNESS, Door, Floorplan, FloorplanError, Room
+from mfcl_jax.floorplan.geojson_units import metre_scale, scaled
+from mfcl_jax.floorplan.model import (
+    DEFAULT_WALL_THICKNESS,
+    DOOR_TOUCH_TOL,
+    Door,
+    Floorplan,
+    FloorplanError,
+    Room,
+)
 from mfcl_jax.io.atomic import atomic_write
 
 __all__ = ["load_geojson", "save_geojson", "floorplan_from_geojson", "floorplan_to_geojson"]
@@ -53,8 +74,72 @@ def _rings(src, i, what, feat) -> list[np.ndarray]:
     return [_ring(src, i, what, r) for r in rings]
 
 
+def _wall(source, i, f, gtype, props, walls, thick, wall_polys) -> None:
+    t = props.get("thickness", DEFAULT_WALL_THICKNESS)
+    try:
+        t = float(t)
+    except (TypeError, ValueError):
+        raise FloorplanError(f"{source}: feature #{i} (wall): thickness={t!r}") from None
+    if not (np.isfinite(t) and t > 0):
+        raise FloorplanError(f"{source}: feature #{i} (wall): thickness={t!r} must be > 0")
+    if gtype in ("LineString", "MultiLineString"):
+        arr = _coords(source, i, f, "wall")
+        for line in arr if gtype == "MultiLineString" else [arr]:
+            xy = np.asarray(line, float).reshape(len(line), -1)[:, :2]
+            if len(xy) < 2:
+                raise FloorplanError(f"{source}: feature #{i} (wall): needs >= 2 positions")
+            for a, b in zip(xy[:-1], xy[1:], strict=True):
+                walls.append([a, b])
+                thick.append(t)
+    elif gtype == "Polygon":
+        rings = _rings(source, i, "wall", f)
+        poly = Polygon(rings[0], rings[1:])
+        if not poly.is_valid:
+            raise FloorplanError(f"{source}: feature #{i} (wall): invalid polygon")
+        wall_polys.append(poly)
+    else:
+        raise FloorplanError(
+            f"{source}: feature #{i} (wall): geometry type {gtype!r}, "
+            "expected LineString or Polygon"
+        )
+
+
+def _room(source, i, rname, rings) -> Room:
+    poly = Polygon(rings[0], rings[1:])
+    if not poly.is_valid:
+        raise FloorplanError(
+            f"{source}: feature #{i} (room {rname!r}): polygon is self-intersecting "
+            "or otherwise invalid"
+        )
+    return Room(rname, poly)
+
+
+def _multi_room(source, i, f, rname) -> list[Room]:
+    parts = (f.get("geometry") or {}).get("coordinates")
+    if not isinstance(parts, list) or not parts:
+        raise FloorplanError(f"{source}: feature #{i} (room {rname!r}): empty MultiPolygon")
+    out = []
+    for k, rings in enumerate(parts, 1):
+        name = f"{rname}#{k}"
+        if not isinstance(rings, list) or not rings:
+            raise FloorplanError(f"{source}: feature #{i} (room {name!r}): part has no rings")
+        out.append(_room(source, i, name, [_ring(source, i, f"room {name!r}", r) for r in rings]))
+    return out
+
+
+def _default_kind(source, i, gtype) -> str:
+    if gtype in ("Polygon", "MultiPolygon"):
+        return "room"
+    if gtype in ("LineString", "MultiLineString"):
+        return "wall"
+    raise FloorplanError(
+        f"{source}: feature #{i}: no properties.kind and geometry type {gtype!r} has no default "
+        "role (Polygon/MultiPolygon are rooms, LineString/MultiLineString are walls)"
+    )
+
+
 def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | None = None):
-    """Builds a ``Floorplan`` from a parsed GeoJSON FeatureCollection.
+    """Builds a ``Floorplan`` from a parsed GeoJSON FeatureCollection (module rules).
 
     Raises:
         FloorplanError: naming the source, the feature index and what is wrong.
@@ -64,51 +149,34 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
     feats = data.get("features")
     if not isinstance(feats, list):
         raise FloorplanError(f"{source}: 'features' must be a list")
+    data = scaled(data, metre_scale(data, source))
+    feats = data["features"]
     walls, thick, wall_polys, rooms, doors = [], [], [], [], []
+    parts: dict[str, list[str]] = {}
     for i, f in enumerate(feats):
+        if not isinstance(f, dict):
+            raise FloorplanError(f"{source}: feature #{i}: not a GeoJSON Feature object")
         props = f.get("properties") or {}
         kind = props.get("kind")
         gtype = (f.get("geometry") or {}).get("type")
+        if kind is None:
+            kind = _default_kind(source, i, gtype)
+            if gtype == "MultiPolygon":
+                rname = str(props.get("name", f"room_{i}"))
+                split = _multi_room(source, i, f, rname)
+                parts[rname] = [r.name for r in split]
+                rooms.extend(split)
+                continue
+            props = dict(props, name=props.get("name", f"room_{i}"))
         if kind == "wall":
-            t = props.get("thickness", DEFAULT_WALL_THICKNESS)
-            try:
-                t = float(t)
-            except (TypeError, ValueError):
-                raise FloorplanError(f"{source}: feature #{i} (wall): thickness={t!r}") from None
-            if not (np.isfinite(t) and t > 0):
-                raise FloorplanError(f"{source}: feature #{i} (wall): thickness={t!r} must be > 0")
-            if gtype == "LineString":
-                xy = _coords(source, i, f, "wall")[:, :2]
-                if len(xy) < 2:
-                    raise FloorplanError(f"{source}: feature #{i} (wall): needs >= 2 positions")
-                for a, b in zip(xy[:-1], xy[1:], strict=True):
-                    walls.append([a, b])
-                    thick.append(t)
-            elif gtype == "Polygon":
-                rings = _rings(source, i, "wall", f)
-                poly = Polygon(rings[0], rings[1:])
-                if not poly.is_valid:
-                    raise FloorplanError(f"{source}: feature #{i} (wall): invalid polygon")
-                wall_polys.append(poly)
-            else:
-                raise FloorplanError(
-                    f"{source}: feature #{i} (wall): geometry type {gtype!r}, "
-                    "expected LineString or Polygon"
-                )
+            _wall(source, i, f, gtype, props, walls, thick, wall_polys)
         elif kind == "room":
             if gtype != "Polygon":
                 raise FloorplanError(
                     f"{source}: feature #{i} (room): geometry type {gtype!r}, expected Polygon"
                 )
             rname = str(props.get("name", f"room{i}"))
-            rings = _rings(source, i, f"room {rname!r}", f)
-            poly = Polygon(rings[0], rings[1:])
-            if not poly.is_valid:
-                raise FloorplanError(
-                    f"{source}: feature #{i} (room {rname!r}): polygon is self-intersecting "
-                    "or otherwise invalid"
-                )
-            rooms.append(Room(rname, poly))
+            rooms.append(_room(source, i, rname, _rings(source, i, f"room {rname!r}", f)))
         elif kind == "door":
             if gtype != "LineString":
                 raise FloorplanError(
@@ -124,32 +192,46 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
             )
     if not rooms:
         raise FloorplanError(f"{source}: no 'room' features: a floor plan needs named rooms")
-    # Doors without explicit rooms join the rooms they touch.
-    room_objs = {r.name: r for r in rooms}
-    door_objs = []
-    from shapely.geometry import LineString
-
-    for i, xy, names in doors:
-        if names is None:
-            line = LineString(xy)
-            names = [r.name for r in rooms if r.polygon.distance(line) <= 0.5][:2]
-            if not names:
-                raise FloorplanError(f"{source}: feature #{i} (door): touches no room")
-        if not isinstance(names, list | tuple) or not 1 <= len(names) <= 2:
-            raise FloorplanError(f"{source}: feature #{i} (door): rooms={names!r}, expected [a, b]")
-        for n in names:
-            if str(n) not in room_objs:
-                raise FloorplanError(f"{source}: feature #{i} (door): unknown room {n!r}")
-        door_objs.append(Door(xy, tuple(str(n) for n in names)))
     return Floorplan(
         walls=np.asarray(walls, float).reshape(-1, 2, 2),
         thickness=np.asarray(thick, float),
         rooms=tuple(rooms),
-        doors=tuple(door_objs),
+        doors=tuple(_doors(source, doors, rooms, parts)),
         wall_polygons=tuple(wall_polys),
         name=name or data.get("name") or Path(str(source)).stem,
         source=str(source),
     )
+
+
+def _doors(source, doors, rooms, parts) -> list[Door]:
+    """Doors with their room names resolved: none given -> the rooms the door touches; a
+    multi-part room's name -> the part the door touches (the nearest, if several)."""
+    room_objs = {r.name: r for r in rooms}
+    out = []
+    for i, xy, names in doors:
+        line = LineString(xy)
+        if names is None:
+            names = [r.name for r in rooms if r.polygon.distance(line) <= DOOR_TOUCH_TOL][:2]
+            if not names:
+                raise FloorplanError(f"{source}: feature #{i} (door): touches no room")
+        if not isinstance(names, list | tuple) or not 1 <= len(names) <= 2:
+            raise FloorplanError(f"{source}: feature #{i} (door): rooms={names!r}, expected [a, b]")
+        resolved = []
+        for n in (str(v) for v in names):
+            if n in parts and n not in room_objs:
+                dist = {p: room_objs[p].polygon.distance(line) for p in parts[n]}
+                best = min(dist, key=dist.get)
+                if dist[best] > DOOR_TOUCH_TOL:
+                    raise FloorplanError(
+                        f"{source}: feature #{i} (door): touches no part of the multi-part room "
+                        f"{n!r} ({', '.join(parts[n])})"
+                    )
+                n = best
+            if n not in room_objs:
+                raise FloorplanError(f"{source}: feature #{i} (door): unknown room {n!r}")
+            resolved.append(n)
+        out.append(Door(xy, tuple(resolved)))
+    return out
 
 
 def load_geojson(path) -> Floorplan:
@@ -164,21 +246,22 @@ def load_geojson(path) -> Floorplan:
     return floorplan_from_geojson(data, source=str(path))
 
 
-def _poly_coords(poly: Polygon) -> list:
-    return [np.asarray(poly.exterior.coords).tolist()] + [
-        np.asarray(r.coords).tolist() for r in poly.interiors
+def _poly_coords(poly: Polygon, off: np.ndarray) -> list:
+    return [(np.asarray(poly.exterior.coords) + off).tolist()] + [
+        (np.asarray(r.coords) + off).tolist() for r in poly.interiors
     ]
 
 
 def floorplan_to_geojson(fp: Floorplan) -> dict:
-    """The GeoJSON FeatureCollection for a floor plan."""
+    """The GeoJSON FeatureCollection for a floor plan, in plan-frame coordinates."""
+    off = np.asarray(fp.offset, np.float64)
     feats = []
     for seg, t in zip(fp.walls, fp.thickness, strict=True):
         feats.append(
             {
                 "type": "Feature",
                 "properties": {"kind": "wall", "thickness": float(t)},
-                "geometry": {"type": "LineString", "coordinates": seg.tolist()},
+                "geometry": {"type": "LineString", "coordinates": (seg + off).tolist()},
             }
         )
     for poly in fp.wall_polygons:
@@ -186,7 +269,7 @@ def floorplan_to_geojson(fp: Floorplan) -> dict:
             {
                 "type": "Feature",
                 "properties": {"kind": "wall"},
-                "geometry": {"type": "Polygon", "coordinates": _poly_coords(poly)},
+                "geometry": {"type": "Polygon", "coordinates": _poly_coords(poly, off)},
             }
         )
     for r in fp.rooms:
@@ -194,15 +277,16 @@ def floorplan_to_geojson(fp: Floorplan) -> dict:
             {
                 "type": "Feature",
                 "properties": {"kind": "room", "name": r.name},
-                "geometry": {"type": "Polygon", "coordinates": _poly_coords(r.polygon)},
+                "geometry": {"type": "Polygon", "coordinates": _poly_coords(r.polygon, off)},
             }
         )
     for d in fp.doors:
+        seg = np.asarray(d.segment, np.float64) + off
         feats.append(
             {
                 "type": "Feature",
                 "properties": {"kind": "door", "rooms": list(d.rooms)},
-                "geometry": {"type": "LineString", "coordinates": np.asarray(d.segment).tolist()},
+                "geometry": {"type": "LineString", "coordinates": seg.tolist()},
             }
         )
     return {"type": "FeatureCollection", "name": fp.name, "features": feats}

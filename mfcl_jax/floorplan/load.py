@@ -1,4 +1,9 @@
-"""One entry point for every floor-plan file format."""
+"""One entry point for every floor-plan file format.
+
+Every plan is read in float64 and then, when it lies far from the origin (a georeferenced
+plan), moved next to it with the shift recorded in ``Floorplan.offset``
+(``mfcl_jax.floorplan.origin``), so that no float32 raster or kernel sees large coordinates.
+"""
 
 from __future__ import annotations
 
@@ -6,12 +11,19 @@ from pathlib import Path
 
 from mfcl_jax.floorplan.model import Floorplan, FloorplanError
 
-__all__ = ["load_floorplan", "FLOORPLAN_SUFFIXES"]
+__all__ = ["load_floorplan", "floorplan_files", "FLOORPLAN_SUFFIXES"]
 
 FLOORPLAN_SUFFIXES = (".geojson", ".json", ".ifc", ".yaml", ".yml")
 
 
-def load_floorplan(path, storey=None, cut_height: float = 1.0) -> Floorplan:
+def load_floorplan(
+    path,
+    storey=None,
+    cut_height: float = 1.0,
+    free_thresh: float | None = None,
+    occupied_thresh: float | None = None,
+    local: bool = True,
+) -> Floorplan:
     """Loads a floor plan, choosing the reader by the file extension.
 
     Args:
@@ -19,9 +31,12 @@ def load_floorplan(path, storey=None, cut_height: float = 1.0) -> Floorplan:
             (ROS map_server map).
         storey: IFC storey name or elevation (IFC only).
         cut_height: IFC cutting-plane height above the storey (m).
+        free_thresh, occupied_thresh: override the ROS map's thresholds (ROS maps only).
+        local: move a plan far from the origin next to it (``origin.local_origin``).
 
     Raises:
-        FloorplanError: unknown extension, missing file, or whatever the reader rejects.
+        FloorplanError: unknown extension, missing file, an option for another format, or
+            whatever the reader rejects.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -34,14 +49,42 @@ def load_floorplan(path, storey=None, cut_height: float = 1.0) -> Floorplan:
         raise FloorplanError(f"{path}: file not found")
     if storey is not None and suffix != ".ifc":
         raise FloorplanError(f"{path}: storey={storey!r} applies to IFC files only")
+    rosmap = suffix in (".yaml", ".yml")
+    for flag, value in (("free_thresh", free_thresh), ("occupied_thresh", occupied_thresh)):
+        if value is not None and not rosmap:
+            raise FloorplanError(f"{path}: {flag}={value!r} applies to ROS maps (.yaml) only")
     if suffix in (".geojson", ".json"):
         from mfcl_jax.floorplan.geojson import load_geojson
 
-        return load_geojson(path)
-    if suffix == ".ifc":
+        fp = load_geojson(path)
+    elif suffix == ".ifc":
         from mfcl_jax.floorplan.ifc import load_ifc
 
-        return load_ifc(path, storey=storey, cut_height=cut_height)
-    from mfcl_jax.floorplan.rosmap import load_rosmap
+        fp = load_ifc(path, storey=storey, cut_height=cut_height)
+    else:
+        from mfcl_jax.floorplan.rosmap import load_rosmap
 
-    return load_rosmap(path)
+        fp = load_rosmap(path, free_thresh=free_thresh, occupied_thresh=occupied_thresh)
+    if not local:
+        return fp
+    from mfcl_jax.floorplan.origin import local_origin
+
+    return local_origin(fp)
+
+
+def floorplan_files(path) -> list[Path]:
+    """The files a load of ``path`` reads: the plan itself and, for a ROS map, its image (so
+    an output can be checked against them before the run; an unreadable YAML lists only
+    itself, the loader reports it)."""
+    path = Path(path)
+    files = [path]
+    if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
+        import yaml
+
+        try:
+            image = (yaml.safe_load(path.read_text()) or {}).get("image")
+        except (yaml.YAMLError, AttributeError, OSError, UnicodeDecodeError):
+            image = None
+        if isinstance(image, str) and image:
+            files.append(path.parent / image)
+    return files

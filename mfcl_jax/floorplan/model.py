@@ -15,7 +15,14 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.ops import unary_union
 
-__all__ = ["FloorplanError", "Room", "Door", "Floorplan", "DEFAULT_WALL_THICKNESS"]
+__all__ = [
+    "FloorplanError",
+    "FloorplanWarning",
+    "Room",
+    "Door",
+    "Floorplan",
+    "DEFAULT_WALL_THICKNESS",
+]
 
 DEFAULT_WALL_THICKNESS = 0.15
 # A door must come this close (m) to a room's polygon to count as touching it; rooms are
@@ -25,6 +32,11 @@ DOOR_TOUCH_TOL = 0.5
 
 class FloorplanError(ValueError):
     """A floor plan that cannot be used; the message names the source and the feature."""
+
+
+class FloorplanWarning(UserWarning):
+    """A floor plan that loads but probably not as its author meant (the message says how to
+    check and which option changes it)."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +71,10 @@ class Floorplan:
         doors: doors with the rooms they join.
         name: a short name for plots and tables.
         source: where it came from (a file path), used in error messages.
+        offset: ``(2,)`` float64 local origin: plan (file) coordinates = the coordinates
+            held here + ``offset``. Zero unless the loader moved a plan that lies far from
+            the origin (georeferenced) next to it, so that float32 rasters and kernels keep
+            their precision (``mfcl_jax.floorplan.origin``).
     """
 
     walls: np.ndarray
@@ -68,6 +84,7 @@ class Floorplan:
     wall_polygons: tuple[Polygon, ...] = ()
     name: str = "floorplan"
     source: str = "<memory>"
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -80,6 +97,10 @@ class Floorplan:
         object.__setattr__(self, "rooms", tuple(self.rooms))
         object.__setattr__(self, "doors", tuple(self.doors))
         object.__setattr__(self, "wall_polygons", tuple(self.wall_polygons))
+        offset = np.asarray(self.offset, dtype=np.float64).reshape(-1)
+        if offset.shape != (2,) or not _finite(offset):
+            raise FloorplanError(f"{self.source}: offset must be 2 finite numbers, got {offset}")
+        object.__setattr__(self, "offset", offset)
         self._validate()
 
     # ------------------------------------------------------------------ validation
@@ -250,6 +271,7 @@ class Floorplan:
             wall_polygons=tuple(tf_geom(p) for p in self.wall_polygons),
             name=self.name,
             source=self.source,
+            offset=self.offset,
         )
 
     def rasterize(self, res: float = 0.10, margin: float = 1.0):

@@ -21,86 +21,14 @@ from pathlib import Path
 import numpy as np
 import shapely
 import shapely.affinity
-import yaml
 from scipy import ndimage
 from shapely.geometry import Polygon
 
 from mfcl_jax.floorplan.model import Door, Floorplan, FloorplanError, Room
 from mfcl_jax.floorplan.roomseg import segment_rooms
+from mfcl_jax.floorplan.rosmap_grid import read_rosmap_grid
 
 __all__ = ["load_rosmap", "read_rosmap_grid"]
-
-_REQUIRED = ("image", "resolution", "origin")
-
-
-def _field(path, data, name, default=None, kind=float):
-    if name not in data:
-        if default is None:
-            raise FloorplanError(f"{path}: missing field {name!r}")
-        return default
-    value = data[name]
-    try:
-        out = kind(value)
-    except (TypeError, ValueError):
-        raise FloorplanError(f"{path}: bad field {name}={value!r}") from None
-    return out
-
-
-def read_rosmap_grid(yaml_path, free_thresh: float | None = None, occupied_thresh=None):
-    """Reads a map_server map.
-
-    Returns:
-        ``(occ (H, W) bool, free (H, W) bool, res, origin (x, y, yaw))`` with row 0 at the
-        bottom of the map (world y grows with the row index).
-    """
-    from PIL import Image
-
-    path = Path(yaml_path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise FloorplanError(f"{path}: file not found") from None
-    except yaml.YAMLError as e:
-        raise FloorplanError(f"{path}: not valid YAML ({e})") from None
-    if not isinstance(data, dict):
-        raise FloorplanError(f"{path}: expected a mapping with fields {', '.join(_REQUIRED)}")
-    image = data.get("image")
-    if not isinstance(image, str) or not image:
-        raise FloorplanError(f"{path}: bad field image={image!r}")
-    res = _field(path, data, "resolution")
-    if not (math.isfinite(res) and res > 0):
-        raise FloorplanError(f"{path}: bad field resolution={data['resolution']!r} (need > 0)")
-    origin = data.get("origin")
-    try:
-        origin = [float(v) for v in origin]
-        assert len(origin) == 3 and all(math.isfinite(v) for v in origin)
-    except (TypeError, ValueError, AssertionError):
-        raise FloorplanError(f"{path}: bad field origin={origin!r} (need [x, y, yaw])") from None
-    negate = _field(path, data, "negate", 0, int)
-    if negate not in (0, 1):
-        raise FloorplanError(f"{path}: bad field negate={data['negate']!r} (need 0 or 1)")
-    occ_t = _field(path, data, "occupied_thresh", 0.65)
-    free_t = _field(path, data, "free_thresh", 0.196)
-    occ_t = occ_t if occupied_thresh is None else float(occupied_thresh)
-    free_t = free_t if free_thresh is None else float(free_thresh)
-    if not 0.0 <= free_t < occ_t <= 1.0:
-        raise FloorplanError(
-            f"{path}: bad fields free_thresh={free_t!r}, occupied_thresh={occ_t!r} "
-            "(need 0 <= free_thresh < occupied_thresh <= 1)"
-        )
-    img_path = (path.parent / image) if not Path(image).is_absolute() else Path(image)
-    try:
-        img = Image.open(img_path)
-        img.load()
-    except FileNotFoundError:
-        raise FloorplanError(f"{path}: image file {str(img_path)!r} not found") from None
-    except Exception as e:
-        raise FloorplanError(f"{path}: cannot read image {str(img_path)!r} ({e})") from None
-    v = np.asarray(img.convert("L"), dtype=np.float64)
-    p = v / 255.0 if negate else (255.0 - v) / 255.0
-    occ = np.flipud(p > occ_t)
-    free = np.flipud(p < free_t)
-    return occ, free, float(res), tuple(origin)
 
 
 # ---------------------------------------------------------------------- vectorising

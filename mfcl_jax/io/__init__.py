@@ -1,12 +1,15 @@
-"""Input/output: TUM trajectories, PCD scans, dataset folders, ROS bags, CARMEN logs and
-decision logs."""
+"""Input/output: TUM trajectories, PCD scans, dataset folders, ROS bags (scans, PointCloud2
+layouts, static transforms), CARMEN logs, decision logs, and safe atomic output."""
 
+from mfcl_jax.io.atomic import atomic_write, check_output
 from mfcl_jax.io.bag import BagScans, read_bag
 from mfcl_jax.io.carmen import CarmenLog, read_carmen
 from mfcl_jax.io.dataset import Dataset, load_dataset, write_dataset
 from mfcl_jax.io.decisions import read_decisions, write_decisions
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import read_pcd, write_pcd
+from mfcl_jax.io.pointcloud2 import pointcloud2_points
+from mfcl_jax.io.tf_static import planar_pose, read_tf_static, transform_between, xyz_rpy
 from mfcl_jax.io.tum import read_tum, write_tum
 
 __all__ = [
@@ -14,14 +17,21 @@ __all__ = [
     "CarmenLog",
     "DataError",
     "Dataset",
+    "atomic_write",
+    "check_output",
     "load_dataset",
+    "planar_pose",
+    "pointcloud2_points",
     "read_bag",
     "read_carmen",
     "read_decisions",
     "read_pcd",
+    "read_tf_static",
     "read_tum",
+    "transform_between",
     "write_dataset",
     "write_decisions",
     "write_pcd",
     "write_tum",
+    "xyz_rpy",
 ]

@@ -1,12 +1,21 @@
-"""ROS1/ROS2 bags (via ``rosbags``): 2D scans paired with odometry.
+"""ROS1/ROS2 bags (via ``rosbags``): scans paired with odometry.
 
 Scans are ``sensor_msgs/LaserScan`` (valid ranges within ``[range_min, range_max]``) or
-``sensor_msgs/PointCloud2`` (fields ``x``, ``y``; non-finite points dropped), taken at their
-header stamps. Odometry is ``nav_msgs/Odometry``; its planar pose is interpolated at each
-scan stamp (linear in x, y and in the unwrapped yaw). Scans outside the odometry's time span
-cannot be paired: they are left out and counted in ``BagScans.unpaired``. The odometry pose
-is the pose of the odometry's child frame; a fixed sensor mounting can be given as
-``sensor_offset``.
+``sensor_msgs/PointCloud2`` (any driver's layout, ``mfcl_jax.io.pointcloud2``), taken at
+their header stamps; ``xyz=True`` keeps z (LaserScan points get z = 0). Scans that repeat an
+earlier scan's stamp are left out (the first message wins) and counted in
+``BagScans.duplicates``, as duplicate odometry stamps are (``odom_duplicates``).
+
+Odometry is ``nav_msgs/Odometry``; its planar pose is interpolated at each scan stamp
+(linear in x, y and in the unwrapped yaw). Scans outside the odometry's time span cannot be
+paired: they are left out and counted in ``BagScans.unpaired``.
+
+The odometry pose is the pose of the odometry's child frame (the robot's base). The sensor
+pose is that pose composed with the LiDAR mounting: given as ``sensor_offset`` ``(x, y,
+yaw)``, or read from the bag's ``/tf_static`` with ``base_frame`` (the chain from that frame
+to the scans' ``header.frame_id``; its planar part is applied, the full 4x4 is kept in
+``BagScans.mount``). ``BagScans.odometry`` is then the SENSOR pose in L, the convention of
+every ``ScanSequence``.
 """
 
 from __future__ import annotations
@@ -17,9 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.io.pointcloud2 import pointcloud2_points
+from mfcl_jax.io.tf_static import planar_pose, sensor_poses, static_edges, transform_between
 from mfcl_jax.io.tum import yaw_from_quat
 
-__all__ = ["BagScans", "read_bag"]
+__all__ = ["BagScans", "read_bag", "open_bag"]
+
+_SCAN_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2")
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,12 +40,17 @@ class BagScans:
     """Scans of a bag with the odometry at their stamps.
 
     Attributes:
-        times: ``(N,)`` scan stamps (s).
-        scans: ``N`` arrays ``(n_i, 2)``, points in the sensor frame.
+        times: ``(N,)`` scan stamps (s), strictly increasing.
+        scans: ``N`` arrays ``(n_i, 2)`` (or ``(n_i, 3)`` with ``xyz``), sensor frame.
         odometry: ``(N, 3)`` sensor poses in the odometry frame at the scan stamps.
         unpaired: scans left out because no odometry brackets their stamp.
-        odom_times: ``(M,)`` stamps of the raw odometry messages.
+        odom_times: ``(M,)`` stamps of the raw odometry messages (duplicates removed).
         odom_poses: ``(M, 3)`` the raw odometry poses.
+        duplicates: scans left out because an earlier scan has the same stamp.
+        odom_duplicates: odometry messages left out for the same reason.
+        dropped: points dropped from PointCloud2 scans (non-finite or at the origin).
+        frame_id: the scans' ``header.frame_id`` (of the first scan).
+        mount: ``(4, 4)`` sensor pose in ``base_frame`` from ``/tf_static``, or None.
     """
 
     times: np.ndarray
@@ -41,6 +59,11 @@ class BagScans:
     unpaired: int
     odom_times: np.ndarray
     odom_poses: np.ndarray
+    duplicates: int = 0
+    odom_duplicates: int = 0
+    dropped: int = 0
+    frame_id: str = ""
+    mount: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.times)
@@ -50,36 +73,43 @@ def _stamp(msg) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
-def _laserscan_points(m) -> np.ndarray:
+def _laserscan_points(m, xyz: bool) -> np.ndarray:
     r = np.asarray(m.ranges, float)
     a = m.angle_min + m.angle_increment * np.arange(len(r))
     ok = np.isfinite(r) & (r >= m.range_min) & (r <= m.range_max)
-    return np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], -1)
+    cols = [r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])]
+    return np.stack(cols + [np.zeros(int(ok.sum()))] if xyz else cols, -1)
 
 
-_PC2_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+def open_bag(path):
+    """An opened ``rosbags`` AnyReader (close it after use).
 
+    Raises:
+        DataError: a missing path or a file that is not a readable bag.
+    """
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
 
-def _pointcloud2_points(m, where: str) -> np.ndarray:
-    fields = {f.name: f for f in m.fields}
-    for name in ("x", "y"):
-        if name not in fields:
-            raise DataError(f"{where}: PointCloud2 without field {name!r} ({list(fields)})")
-    end = ">" if m.is_bigendian else "<"
-    data = np.frombuffer(bytes(m.data), np.uint8)
-    n = m.width * m.height
-    rows = data[: n * m.point_step].reshape(n, m.point_step) if n else data[:0].reshape(0, 1)
-    cols = []
-    for name in ("x", "y"):
-        f = fields[name]
-        dt = np.dtype(end + _PC2_TYPES[f.datatype])
-        cols.append(rows[:, f.offset : f.offset + dt.itemsize].copy().view(dt).reshape(-1))
-    xy = np.stack(cols, -1).astype(float)
-    return xy[np.all(np.isfinite(xy), axis=1)]
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: bag not found")
+    try:
+        # The default store reads ROS2 bags that do not embed their message definitions.
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as e:
+        raise DataError(f"{path}: not a readable ROS bag ({type(e).__name__}: {e})") from None
+    return reader
 
 
 def read_bag(
-    path, scan_topic: str = "/scan", odom_topic: str = "/odom", sensor_offset=(0.0, 0.0, 0.0)
+    path,
+    scan_topic: str = "/scan",
+    odom_topic: str = "/odom",
+    sensor_offset=(0.0, 0.0, 0.0),
+    xyz: bool = False,
+    base_frame: str | None = None,
+    tf_topic: str = "/tf_static",
 ) -> BagScans:
     """Reads scans and odometry from a ROS1 ``.bag`` or a ROS2 bag folder.
 
@@ -88,64 +118,91 @@ def read_bag(
         scan_topic: LaserScan or PointCloud2 topic.
         odom_topic: nav_msgs/Odometry topic.
         sensor_offset: pose ``(x, y, yaw)`` of the sensor in the odometry child frame.
+        xyz: keep z: scans ``(n_i, 3)``.
+        base_frame: read the mounting from ``tf_topic`` instead: the static chain from this
+            frame (the odometry's child frame, e.g. ``base_link``) to the scans' frame.
+        tf_topic: the static-transform topic.
 
     Raises:
         DataError: unreadable bag, a missing topic or a topic of the wrong type (the topics
-            present are listed), no scan that the odometry brackets.
+            present are listed), both ``sensor_offset`` and ``base_frame``, a ``/tf_static``
+            without the frames needed (the frames present are listed), no scan that the
+            odometry brackets.
     """
-    from rosbags.highlevel import AnyReader
-
     path = Path(path)
-    if not path.exists():
-        raise DataError(f"{path}: bag not found")
-    try:
-        reader = AnyReader([path])
-        reader.open()
-    except Exception as e:
-        raise DataError(f"{path}: not a readable ROS bag ({type(e).__name__}: {e})") from None
+    if base_frame is not None and np.any(np.asarray(sensor_offset, float) != 0):
+        raise DataError(
+            f"{path}: give the sensor mounting either as sensor_offset {tuple(sensor_offset)} "
+            f"or from {tf_topic} (base_frame={base_frame!r}), not both"
+        )
+    reader = open_bag(path)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         listing = ", ".join(f"{t} ({ty})" for t, ty in sorted(topics.items())) or "none"
-        for topic, ok_types in (
-            (scan_topic, ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2")),
-            (odom_topic, ("nav_msgs/msg/Odometry",)),
-        ):
+        need = [(scan_topic, _SCAN_TYPES), (odom_topic, ("nav_msgs/msg/Odometry",))]
+        if base_frame is not None:
+            need.append((tf_topic, ("tf2_msgs/msg/TFMessage",)))
+        for topic, ok_types in need:
             if topic not in topics:
                 raise DataError(f"{path}: no topic {topic!r}; topics present: {listing}")
             if topics[topic] not in ok_types:
                 want = " or ".join(ok_types)
                 raise DataError(f"{path}: topic {topic!r} carries {topics[topic]}, expected {want}")
-        conns = [c for c in reader.connections if c.topic in (scan_topic, odom_topic)]
-        s_t, scans, o_t, o_p = [], [], [], []
+        wanted = {t for t, _ in need}
+        conns = [c for c in reader.connections if c.topic in wanted]
+        s_t, scans, o_t, o_p, tf_msgs = [], [], [], [], []
+        frame, dropped = "", 0
+        where = f"{path} {scan_topic}"
         for con, _, raw in reader.messages(connections=conns):
             m = reader.deserialize(raw, con.msgtype)
             if con.topic == odom_topic:
                 p, q = m.pose.pose.position, m.pose.pose.orientation
                 o_t.append(_stamp(m))
                 o_p.append((p.x, p.y, float(yaw_from_quat([q.x, q.y, q.z, q.w]))))
-            elif con.msgtype.endswith("LaserScan"):
-                s_t.append(_stamp(m))
-                scans.append(_laserscan_points(m))
+            elif con.topic == tf_topic:
+                tf_msgs.append(m)
             else:
                 s_t.append(_stamp(m))
-                scans.append(_pointcloud2_points(m, f"{path} {scan_topic}"))
+                frame = frame or m.header.frame_id
+                if con.msgtype.endswith("LaserScan"):
+                    scans.append(_laserscan_points(m, xyz))
+                else:
+                    pts, nd = pointcloud2_points(m, where, xyz)
+                    scans.append(pts)
+                    dropped += nd
     finally:
         reader.close()
+    mount = None
+    if base_frame is not None:
+        edges = static_edges(tf_msgs, f"{path} {tf_topic}")
+        mount = transform_between(edges, base_frame, frame, f"{path} {tf_topic}")
+        sensor_offset = planar_pose(mount)
     return _pair(
-        path, np.asarray(s_t), scans, np.asarray(o_t), np.asarray(o_p).reshape(-1, 3), sensor_offset
+        path,
+        np.asarray(s_t),
+        scans,
+        np.asarray(o_t),
+        np.asarray(o_p).reshape(-1, 3),
+        sensor_offset,
+        dict(dropped=dropped, frame_id=str(frame).lstrip("/"), mount=mount),
     )
 
 
-def _pair(path, s_t, scans, o_t, o_p, offset) -> BagScans:
-    order = np.argsort(o_t, kind="stable")
-    o_t, o_p = o_t[order], o_p[order]
-    keep = np.unique(o_t, return_index=True)[1]  # duplicate stamps: first message wins
-    o_t, o_p = o_t[keep], o_p[keep]
+def _first_of_each(t: np.ndarray) -> tuple[np.ndarray, int]:
+    """Indices sorting ``t`` with repeated stamps removed (the first message wins)."""
+    order = np.argsort(t, kind="stable")
+    keep = np.unique(t[order], return_index=True)[1]
+    return order[keep], len(t) - len(keep)
+
+
+def _pair(path, s_t, scans, o_t, o_p, offset, extra) -> BagScans:
+    o_idx, o_dup = _first_of_each(o_t)
+    o_t, o_p = o_t[o_idx], o_p[o_idx]
     if len(o_t) < 2:
         raise DataError(f"{path}: need at least 2 odometry messages, got {len(o_t)}")
-    s_order = np.argsort(s_t, kind="stable")
-    s_t = s_t[s_order]
-    scans = [scans[i] for i in s_order]
+    s_idx, s_dup = _first_of_each(s_t)
+    s_t = s_t[s_idx]
+    scans = [scans[i] for i in s_idx]
     inside = (s_t >= o_t[0]) & (s_t <= o_t[-1])
     if not inside.any():
         raise DataError(
@@ -156,12 +213,7 @@ def _pair(path, s_t, scans, o_t, o_p, offset) -> BagScans:
     pose = np.stack(
         [np.interp(t, o_t, o_p[:, 0]), np.interp(t, o_t, o_p[:, 1]), np.interp(t, o_t, yaw)], -1
     )
-    ox, oy, oth = (float(v) for v in offset)
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    pose = np.stack(
-        [pose[:, 0] + c * ox - s * oy, pose[:, 1] + s * ox + c * oy, pose[:, 2] + oth], -1
-    )
-    pose[:, 2] = np.arctan2(np.sin(pose[:, 2]), np.cos(pose[:, 2]))
+    pose = sensor_poses(pose, offset)
     return BagScans(
         t,
         [scans[i] for i in np.flatnonzero(inside)],
@@ -169,4 +221,7 @@ def _pair(path, s_t, scans, o_t, o_p, offset) -> BagScans:
         int(np.count_nonzero(~inside)),
         o_t,
         o_p,
+        duplicates=s_dup,
+        odom_duplicates=o_dup,
+        **extra,
     )

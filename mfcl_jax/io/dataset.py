@@ -21,6 +21,7 @@ import numpy as np
 import yaml
 
 from mfcl_jax.floorplan.model import Floorplan
+from mfcl_jax.io.atomic import check_output, publish_mode
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import read_pcd, write_pcd
 from mfcl_jax.io.tum import format_time, read_tum, write_tum
@@ -39,9 +40,11 @@ class Dataset:
         floorplan: the building model (frame B).
         times: ``(N,)`` scan times (s).
         time_strings: the times as written (the scan file names).
-        scans: ``N`` arrays ``(n_i, 2)``, points in the sensor frame.
-        odometry: ``(N, 3)`` sensor poses in L.
-        groundtruth: ``(N, 3)`` sensor poses in B, or None.
+        scans: ``N`` arrays ``(n_i, 2)`` (``(n_i, 3)`` when loaded with ``xyz``), points in
+            the sensor frame.
+        odometry: ``(N, 3)`` sensor poses in L (the SENSOR pose, not the robot base: no
+            mounting offset is applied to a dataset's odometry).
+        groundtruth: ``(N, 3)`` sensor poses in B (the plan's file frame), or None.
         dropped: ``(N,)`` number of non-finite points dropped from each scan.
     """
 
@@ -58,13 +61,22 @@ class Dataset:
         return len(self.times)
 
 
-def load_dataset(folder, storey=None, floorplan: Floorplan | None = None) -> Dataset:
+def load_dataset(
+    folder,
+    storey=None,
+    floorplan: Floorplan | None = None,
+    xyz: bool = False,
+    free_thresh: float | None = None,
+    occupied_thresh: float | None = None,
+) -> Dataset:
     """Loads a dataset folder.
 
     Args:
         folder: the dataset folder.
         storey: IFC storey (when the floor plan is an IFC file).
         floorplan: use this floor plan instead of the folder's (the folder then needs none).
+        xyz: keep z: scans ``(n_i, 3)``.
+        free_thresh, occupied_thresh: override a ROS-map floor plan's thresholds.
 
     Raises:
         DataError: missing pieces, a scan without a matching odometry line (or the reverse),
@@ -80,7 +92,9 @@ def load_dataset(folder, storey=None, floorplan: Floorplan | None = None) -> Dat
         if len(plans) != 1:
             found = [p.name for p in plans] or "none"
             raise DataError(f"{folder}: need exactly one of {FLOORPLAN_NAMES}, found {found}")
-        fp = load_floorplan(plans[0], storey=storey)
+        fp = load_floorplan(
+            plans[0], storey=storey, free_thresh=free_thresh, occupied_thresh=occupied_thresh
+        )
     else:
         fp = floorplan
     times, odom, strs = read_tum(folder / "odometry.tum", with_strings=True)
@@ -104,7 +118,7 @@ def load_dataset(folder, storey=None, floorplan: Floorplan | None = None) -> Dat
         )
     scans, dropped = [], []
     for s in strs:
-        pts, nd = read_pcd(files[s], return_dropped=True)
+        pts, nd = read_pcd(files[s], return_dropped=True, xyz=xyz)
         scans.append(pts)
         dropped.append(nd)
     gt = None
@@ -143,7 +157,8 @@ def write_dataset(
         overwrite: replace an existing folder.
 
     Raises:
-        DataError: inconsistent lengths, or the folder exists and ``overwrite`` is False.
+        DataError: inconsistent lengths, the folder exists and ``overwrite`` is False, or
+            it cannot be written (``atomic.check_output``; nothing is left behind).
     """
     from mfcl_jax.floorplan.geojson import save_geojson
 
@@ -156,9 +171,14 @@ def write_dataset(
         )
     if folder.exists() and not overwrite:
         raise DataError(f"{folder}: already exists (pass overwrite=True to replace it)")
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.tmp-"))
+    check_output(folder, folder=True)
     try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.tmp-"))
+    except OSError as e:
+        raise DataError(f"{folder}: cannot create the dataset folder ({e.strerror})") from None
+    try:
+        publish_mode(tmp, folder=True)
         if isinstance(floorplan, Floorplan):
             save_geojson(floorplan, tmp / "floorplan.geojson")
         else:
@@ -179,6 +199,9 @@ def write_dataset(
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, folder)
+    except OSError as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise DataError(f"{folder}: cannot write the dataset ({e.strerror or e})") from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -109,5 +109,7 @@ def write_tum(path, times, poses, time_strings=None) -> Path:
     q = quat_from_yaw(poses[:, 2])
     lines = ["# t x y z qx qy qz qw"]
     for s, p, qq in zip(strs, poses, q, strict=True):
-        lines.append(f"{s} {p[0]:.9g} {p[1]:.9g} 0 {qq[0]:.9g} {qq[1]:.9g} {qq[2]:.9g} {qq[3]:.9g}")
+        # x, y round-trip exactly (repr): georeferenced poses (~5e6 m) keep their millimetres.
+        x, y = repr(float(p[0])), repr(float(p[1]))
+        lines.append(f"{s} {x} {y} 0 {qq[0]:.9g} {qq[1]:.9g} {qq[2]:.9g} {qq[3]:.9g}")
     return atomic_write_text(path, "\n".join(lines) + "\n")

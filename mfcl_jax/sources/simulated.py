@@ -172,22 +172,22 @@ def simulate_dataset(
 ):
     """Writes a dataset folder (atomically) of a walk along ``waypoints`` in ``floorplan``.
 
+    ``waypoints`` are in the plan's file frame (``Floorplan.offset`` applies) and the ground
+    truth is written in that frame too.
+
     The LiDAR sees the plan's wall faces only (no clutter is known for a user's building);
     the folder holds the floor plan as GeoJSON, ``odometry.tum``, ``scans/<t>.pcd`` and
     ``groundtruth.tum``.
     """
+    from mfcl_jax.floorplan.origin import to_local_frame, to_plan_frame
     from mfcl_jax.io.dataset import write_dataset
     from mfcl_jax.sources.walks import check_waypoints
 
-    wp = np.asarray(waypoints, np.float64)
+    wp = to_local_frame(np.asarray(waypoints, np.float64), floorplan.offset)
     check_waypoints(floorplan, wp, where)
     rec = simulate_walk(floorplan, wp, seed, params)
+    gt = to_plan_frame(rec.truth.poses, floorplan.offset)
     return write_dataset(
-        out,
-        floorplan,
-        rec.seq.times,
-        rec.seq.scans,
-        rec.seq.odometry,
-        groundtruth=rec.truth.poses,
+        out, floorplan, rec.seq.times, rec.seq.scans, rec.seq.odometry, groundtruth=gt,
         overwrite=overwrite,
-    )
+    )  # fmt: skip

@@ -9,19 +9,13 @@ import numpy as np
 import pytest
 
 from mfcl_jax import se2
-from mfcl_jax.batch import RunBatch, SubmapBatch, Truth
+from mfcl_jax import windows as W
+from mfcl_jax.batch import RunBatch, SubmapBatch
 from mfcl_jax.floorplan.scenes import symmetric_bays
-from mfcl_jax.sim import (
-    LidarParams,
-    SimParams,
-    SubmapParams,
-    TrajectoryParams,
-    cast,
-    sample_path,
-    simulate,
-    window_bounds,
-)
+from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams, cast, sample_path
 from mfcl_jax.sim import raycast as rc
+from mfcl_jax.sources.simulated import simulate
+from mfcl_jax.windows import window_bounds
 
 EXACT = LidarParams(n_beams=360, sigma=0.0, dropout=0.0)
 CLEAN = SimParams(lidar=EXACT, trajectory=TrajectoryParams(drift_xy=0.0, drift_yaw_deg_per_m=0.0))
@@ -163,46 +157,61 @@ def bays():
     return symmetric_bays()
 
 
+def _windows(recs, d_s=6.0):
+    """Recordings cut and packed the way every consumer does it."""
+    wins = [W.cut(r.seq, W.WindowParams(d_s=d_s)) for r in recs]
+    return W.pack([(r.seq, w, 0) for r, w in zip(recs, wins, strict=True)]), wins
+
+
+def _true_at(rec, w):
+    """True sensor pose of every window's last scan."""
+    return rec.truth.poses[w.last_scan()]
+
+
 @pytest.fixture(scope="module")
 def clean_sim(bays):
-    return simulate(bays, ["S1"], [6.0], [0], CLEAN)
+    recs = simulate(bays, ["S1"], [0], CLEAN)
+    wb, wins = _windows(recs)
+    return recs, wb, wins
 
 
-def test_contracts_and_run_table(clean_sim):
-    sm, rb, truth, runs = clean_sim
-    assert isinstance(sm, SubmapBatch) and isinstance(rb, RunBatch) and isinstance(truth, Truth)
-    assert list(runs.columns[:5]) == ["scene", "trajectory", "d_s", "seed", "run"]
+def test_contracts_and_windows(clean_sim):
+    recs, wb, wins = clean_sim
+    sm, rb = wb.submaps, wb.runs
+    assert isinstance(sm, SubmapBatch) and isinstance(rb, RunBatch)
+    assert recs[0].meta["trajectory"] == "S1" and recs[0].truth is not None
     n = sm.n
-    assert n == int(rb.window_mask.sum()) == runs.n_windows.sum() == 12
+    assert n == int(rb.window_mask.sum()) == len(wins[0]) == 12
     assert sm.points.shape[1] % 256 == 0 and sm.points.shape == sm.origins.shape
     for i in range(n):
         r, w = int(sm.run[i]), int(sm.window[i])
         assert int(rb.submap[r, w]) == i
         j = int(rb.window_end[r, w])
         np.testing.assert_allclose(np.asarray(sm.X[i]), np.asarray(rb.traj[r, j]), atol=1e-6)
-        np.testing.assert_allclose(truth.Y[i], truth.traj[r, j], atol=1e-9)
     assert int(np.asarray(sm.n_dropped).sum()) == 0
     assert np.all(np.asarray(sm.mask).sum(1) > 300)
 
 
 def test_frames_zero_drift_map_to_the_same_world(clean_sim, bays):
-    sm, rb, truth, _ = clean_sim
+    recs, wb, wins = clean_sim
+    sm, rb = wb.submaps, wb.runs
+    Y = _true_at(recs[0], wins[0])
     np.testing.assert_allclose(np.asarray(rb.traj[0, 0]), 0.0, atol=1e-6)  # L = start pose
-    # Every submap's anchor Y X^-1 is the hidden anchor.
-    H = np.asarray(se2.anchor(truth.Y, np.asarray(sm.X, np.float64)))
-    np.testing.assert_allclose(H[:, :2], np.broadcast_to(truth.anchor[0, :2], (sm.n, 2)), atol=1e-3)
+    # Every submap's anchor Y X^-1 is the hidden anchor (the true start pose).
+    H = np.asarray(se2.anchor(Y, np.asarray(sm.X, np.float64)))
+    start = recs[0].truth.poses[0]
+    np.testing.assert_allclose(H[:, :2], np.broadcast_to(start[:2], (sm.n, 2)), atol=1e-3)
     segs = bays.segments
     world = []
     for i in range(sm.n):
         m = np.asarray(sm.mask[i])
-        p = _apply(truth.Y[i], np.asarray(sm.points[i], np.float64)[m])
+        p = _apply(Y[i], np.asarray(sm.points[i], np.float64)[m])
         assert np.max(_dist_to_segments(p, segs)) < 2e-3  # every point lies on a surface
-        o = _apply(truth.Y[i], np.asarray(sm.origins[i], np.float64)[m][::5])
-        d = np.linalg.norm(o[:, None] - truth.traj[0, None, :, :2], axis=-1).min(1)
+        o = _apply(Y[i], np.asarray(sm.origins[i], np.float64)[m][::5])
+        d = np.linalg.norm(o[:, None] - recs[0].truth.poses[None, :, :2], axis=-1).min(1)
         assert np.max(d) < 2e-3  # every ray origin is a true scan position
         world.append(p)
-    # A wall seen by two consecutive submaps lands in the same place: points of submap 1 near
-    # the far end wall of R1... and generally, overlapping clouds coincide within a voxel.
+    # Overlapping clouds of consecutive submaps coincide within a voxel.
     a, b = world[3], world[4]
     nn = np.linalg.norm(a[::4, None] - b[None], axis=-1).min(1)
     assert np.median(nn) < 0.1
@@ -212,38 +221,52 @@ def test_drift_distorts_submaps(bays):
     drifty = SimParams(
         lidar=EXACT, trajectory=TrajectoryParams(drift_xy=0.02, drift_yaw_deg_per_m=1.0)
     )
-    sm, rb, truth, _ = simulate(bays, ["S1"], [6.0], [0], drifty)
-    H = np.asarray(se2.anchor(truth.Y, np.asarray(sm.X, np.float64)))
-    assert np.max(np.linalg.norm(H[:, :2] - truth.anchor[0, :2], axis=1)) > 0.05
+    recs = simulate(bays, ["S1"], [0], drifty)
+    wb, wins = _windows(recs)
+    sm = wb.submaps
+    Y = _true_at(recs[0], wins[0])
+    H = np.asarray(se2.anchor(Y, np.asarray(sm.X, np.float64)))
+    assert np.max(np.linalg.norm(H[:, :2] - recs[0].truth.poses[0, :2], axis=1)) > 0.05
     i = sm.n - 1
     m = np.asarray(sm.mask[i])
-    p = _apply(truth.Y[i], np.asarray(sm.points[i], np.float64)[m])
+    p = _apply(Y[i], np.asarray(sm.points[i], np.float64)[m])
     assert np.percentile(_dist_to_segments(p, bays.segments), 95) > 0.01
 
 
-def test_determinism_and_shared_scans(bays):
-    a = simulate(bays, ["S1"], [5.0, 7.0], [1, 2])
-    b = simulate(bays, ["S1"], [5.0, 7.0], [1, 2])
-    for x, y in zip(jax.tree.leaves(a.submaps), jax.tree.leaves(b.submaps), strict=True):
-        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
-    np.testing.assert_array_equal(np.asarray(a.runs_batch.traj), np.asarray(b.runs_batch.traj))
-    runs = a.runs
-    assert list(runs.seed) == [1, 2, 1, 2] and list(runs.d_s) == [5.0, 5.0, 7.0, 7.0]
-    tr = np.asarray(a.runs_batch.traj)
-    np.testing.assert_array_equal(tr[0], tr[2])  # same seed, other d_s: same scans/odometry
-    assert not np.array_equal(tr[0], tr[1])  # other seed: other drift
+def test_determinism_and_independent_runs(bays):
+    a = simulate(bays, ["S1"], [1, 2])
+    b = simulate(bays, ["S1"], [1, 2])
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x.seq.odometry, y.seq.odometry)
+        for p, q in zip(x.seq.scans, y.seq.scans, strict=True):
+            np.testing.assert_array_equal(p, q)
+    assert [r.meta["seed"] for r in a] == [1, 2]
+    assert not np.array_equal(a[0].seq.odometry, a[1].seq.odometry)  # other seed: other drift
     # A run does not depend on what else is simulated with it.
-    c = simulate(bays, ["S1"], [7.0], [2])
-    r3 = np.asarray(a.submaps.run) == 3
-    np.testing.assert_array_equal(
-        np.asarray(c.submaps.points)[:, :64], np.asarray(a.submaps.points)[r3][:, :64]
-    )
+    c = simulate(bays, ["S1"], [2])[0]
+    np.testing.assert_array_equal(c.seq.odometry, a[1].seq.odometry)
+    np.testing.assert_array_equal(c.seq.scans[5], a[1].seq.scans[5])
+
+
+def test_odometry_restart_rezeroes_the_frame(bays):
+    recs = simulate(bays, ["S1"], [0], dataclasses.replace(CLEAN, restart_at=0.5))
+    odo, true = recs[0].seq.odometry, recs[0].truth.poses
+    r = int(round(0.5 * (len(odo) - 1)))
+    np.testing.assert_allclose(odo[r], 0.0, atol=1e-6)
+    # Before and after, odometry is rigidly related to the truth, by different anchors.
+    before = np.asarray(se2.anchor(true[:r], odo[:r]))
+    after = np.asarray(se2.anchor(true[r:], odo[r:]))
+    np.testing.assert_allclose(before, before[:1].repeat(len(before), 0), atol=1e-3)
+    np.testing.assert_allclose(after, after[:1].repeat(len(after), 0), atol=1e-3)
+    assert np.hypot(*(before[0, :2] - after[0, :2])) > 5.0
+    with pytest.raises(ValueError, match="restart_at"):
+        SimParams(restart_at=1.5)
 
 
 def test_unknown_trajectory_and_empty_inputs(bays):
     with pytest.raises(KeyError, match="no trajectory 'T9'"):
         simulate(bays, ["T9"])
-    with pytest.raises(ValueError, match="at least one"):
-        simulate(bays, ["S1"], [], [0])
+    with pytest.raises(ValueError, match="needs a trajectory and a seed"):
+        simulate(bays, ["S1"], [])
     with pytest.raises(ValueError, match="crop_radius"):
-        SubmapParams(crop_radius=-1.0)
+        W.WindowParams(crop_radius=-1.0)

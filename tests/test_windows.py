@@ -1,0 +1,118 @@
+"""Windows (the one place submaps are cut) and the one scorer shared by every consumer."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mfcl_jax import windows as W
+from mfcl_jax.io import read_decisions, write_decisions
+from mfcl_jax.score import score_batch, score_decisions
+from mfcl_jax.sources import Recording, ScanSequence
+from mfcl_jax.sources.recording import GroundTruth
+
+
+def _line_sequence(n=120, spacing=0.25, with_nan=False):
+    """A straight walk along x past a wall at y = 2 (scans in the sensor frame)."""
+    t = np.arange(n) * 0.5
+    odo = np.stack([np.arange(n) * spacing, np.zeros(n), np.zeros(n)], 1)
+    xs = np.linspace(-3, 3, 61)
+    scans = []
+    for i in range(n):
+        s = np.stack([xs, np.full_like(xs, 2.0)], 1)
+        if with_nan and i % 10 == 0:
+            s[::7] = np.nan
+        scans.append(s)
+    return ScanSequence(t, scans, odo, "line")
+
+
+def test_keyframes_windows_and_cut_are_consistent():
+    seq = _line_sequence()
+    w = W.cut(seq, W.WindowParams(d_s=6.0, step=2.0))
+    # 29.75 m straight: floor((29.75 - 6) / 2) + 1 = 12 windows.
+    assert len(w) == 12
+    np.testing.assert_array_equal(w.keyframes, np.arange(120))  # 0.25 m > 0.20 m spacing
+    np.testing.assert_array_equal(w.last_scan(), w.bounds[:, 1])
+    np.testing.assert_allclose(w.X, seq.odometry[w.bounds[:, 1]])
+    np.testing.assert_allclose(w.t, seq.times[w.bounds[:, 1]])
+    for pts, org in zip(w.points, w.origins, strict=True):
+        assert np.all(np.isfinite(pts)) and pts.shape == org.shape
+        # every point is on the wall y = 2 in the frame of the window's last scan
+        np.testing.assert_allclose(pts[:, 1], 2.0, atol=1e-9)
+        assert np.all(np.linalg.norm(pts, axis=1) <= 10.0 + 1e-9)  # cropped at 10 m
+
+
+def test_cut_is_causal_prefix_of_a_longer_sequence():
+    long = _line_sequence(120)
+    short = long.subset(np.arange(80))
+    a, b = W.cut(long), W.cut(short)
+    assert 0 < len(b) < len(a)
+    np.testing.assert_array_equal(a.bounds[: len(b)], b.bounds)
+    for p, q in zip(a.points[: len(b)], b.points, strict=True):
+        np.testing.assert_array_equal(p, q)
+
+
+def test_rethinning_when_over_capacity_and_error_beyond():
+    seq = _line_sequence()
+    dense = W.cut(seq, W.WindowParams(voxel=0.02, capacity=128))
+    assert np.all(W.rethinned(dense)) and all(len(p) <= 128 for p in dense.points)
+    with pytest.raises(Exception, match="over the capacity"):
+        W.cut(seq, W.WindowParams(voxel=0.001, capacity=64, max_rethin=0))
+
+
+def test_pack_and_concat_index_runs_and_submaps():
+    seq = _line_sequence()
+    wa, wb = W.cut(seq, W.WindowParams(d_s=6.0)), W.cut(seq, W.WindowParams(d_s=10.0))
+    a = W.pack([(seq, wa, 0)])
+    b = W.pack([(seq, wb, 1)])
+    both = W.pack([(seq, wa, 0), (seq, wb, 1)])
+    cat = W.concat([a, b])
+    assert cat.submaps.n == both.submaps.n == len(wa) + len(wb)
+    np.testing.assert_array_equal(cat.runs.submap, both.runs.submap)
+    np.testing.assert_array_equal(cat.submaps.run, both.submaps.run)
+    np.testing.assert_array_equal(cat.building, [0] * len(wa) + [1] * len(wb))
+    np.testing.assert_allclose(cat.submaps.X, both.submaps.X)
+    assert cat.submaps.points.shape[1] == 0  # concat keeps no points
+
+
+def test_the_one_scorer_gives_one_verdict_for_every_consumer(tmp_path):
+    """Study/benchmark (``score_batch`` on a decision table) and ``mfcl evaluate`` (a JSON-lines
+    log) score the same decisions identically."""
+    seq = _line_sequence()
+    anchor = np.array([3.0, -1.0, 0.3])
+    c, s = np.cos(anchor[2]), np.sin(anchor[2])
+    R = np.array([[c, -s], [s, c]])
+    true = np.concatenate(
+        [seq.odometry[:, :2] @ R.T + anchor[:2], (seq.odometry[:, 2:] + anchor[2])], 1
+    )
+    rec = Recording("line", None, seq, GroundTruth(seq.times, true))
+    w = W.cut(seq)
+    batch = W.pack([(seq, w, 0)])
+    import pandas as pd
+
+    rows = []
+    offsets = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (1.5, 0.0, 0.0), (0.0, 0.0, 6.0)]
+    for k in range(1, len(w) + 1):
+        dx, dy, dyaw = offsets[k % len(offsets)]
+        rows.append(
+            dict(run=0, k=k, state="COMMIT", policy="ours", x=anchor[0] + dx,
+                 y=anchor[1] + dy, yaw_deg=np.rad2deg(anchor[2]) + dyaw)
+        )  # fmt: skip
+    frame = pd.DataFrame(rows)
+    a = score_batch(frame, batch, [rec], rooms=False)
+    decisions = [
+        dict(k=int(r.k), t=float(w.t[r.k - 1]), state="COMMIT", symmetry=None, tau=None,
+             anchor=dict(x=r.x, y=r.y, yaw_deg=r.yaw_deg), B1=3, B2=0, margin=3)
+        for r in frame.itertuples()
+    ]  # fmt: skip
+    write_decisions(tmp_path / "d.jsonl", decisions)
+    b = score_decisions(read_decisions(tmp_path / "d.jsonl"), seq.times, seq.odometry,
+                        seq.times, true)  # fmt: skip
+    np.testing.assert_array_equal(a["correct"].to_numpy(), b["correct"].to_numpy())
+    np.testing.assert_allclose(a["err_xy"], b["err_xy"], atol=1e-9)
+    # 0 and 0.5 m are right, 1.5 m and 6 deg are wrong.
+    expect = [o[0] < 1.0 and o[2] < 5.0 for o in (offsets[k % 4] for k in range(1, len(w) + 1))]
+    assert list(a["correct"]) == expect
+    assert json.loads((tmp_path / "d.jsonl").read_text().splitlines()[0])["state"] == "COMMIT"

@@ -1,7 +1,7 @@
 """3-D LiDAR input: does a sliced 3-D cloud commit as its 2-D twin does?
 
 For each walk (``three_rooms`` T1 and T2 with their furniture, Office_A ``open_office_to_113``
-on the IFC walls; and T1 once more with the mount tilted, band input only) one simulation gives true poses, drifting odometry, Livox Mid-360-like clouds
+on the IFC walls) one simulation gives true poses, drifting odometry, Livox Mid-360-like clouds
 (0.5 m above the floor, ceiling 2.8 m / 3.0 m) and the planar ring at the same poses. The
 localizer (default ``LocalizeParams``) then runs on three scan sequences that share the
 odometry:
@@ -9,6 +9,8 @@ odometry:
 * ``2d``: the planar ring (what ``mfcl`` consumed so far);
 * ``3d_band``: the clouds through ``cloud3d.slice_clouds`` with the default ``BandParams``;
 * ``3d_raw``: the clouds projected onto x, y without a band (floor, ceiling and all).
+
+``T1_tilted`` repeats T1 with the mount pitched 3 deg and rolled 1 deg (band input only).
 
 Ground truth only scores. Writes ``results/lidar3d.csv`` and ``results/lidar3d.md``.
 

@@ -18,6 +18,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from mfcl_jax.floorplan.scenes import DEFAULT_CLUTTER_HEIGHT
+
 __all__ = ["Geometry3D", "build_geometry", "first_hit", "nearest_faces"]
 
 
@@ -79,8 +81,6 @@ def build_geometry(walls, clutter=None, clutter_height=None, h_ceil: float = 2.8
             ``None``: ``scenes.DEFAULT_CLUTTER_HEIGHT`` each.
         h_ceil: ceiling height above the floor (m).
     """
-    from mfcl_jax.floorplan.scenes import DEFAULT_CLUTTER_HEIGHT
-
     walls = np.asarray(walls, np.float64).reshape(-1, 2, 2)
     clutter = np.zeros((0, 2, 2)) if clutter is None else np.asarray(clutter, float)
     clutter = clutter.reshape(-1, 2, 2)

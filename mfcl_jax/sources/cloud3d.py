@@ -106,6 +106,13 @@ class Mount:
     xyz: tuple = (0.0, 0.0, 0.0)
     rpy: tuple = (0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        for name in ("xyz", "rpy"):
+            v = np.asarray(getattr(self, name), np.float64)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise DataError(f"Mount.{name} needs 3 finite numbers, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, tuple(float(x) for x in v))
+
     def matrix(self) -> np.ndarray:
         """``(3, 3)`` rotation."""
         r, p, y = (float(v) for v in self.rpy)
@@ -143,6 +150,14 @@ class SliceInfo:
     z_range: tuple
 
 
+def _finite_cloud(points, where: str) -> np.ndarray:
+    """The finite rows of an ``(n, 3)`` cloud as float64; ``DataError`` for another shape."""
+    p = np.asarray(points, np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise DataError(f"{where}: a 3-D cloud must be (n, 3), got shape {p.shape}")
+    return p[np.all(np.isfinite(p), 1)]
+
+
 def slice_cloud(
     points_xyz,
     params: BandParams = BandParams(),
@@ -167,10 +182,7 @@ def slice_cloud(
         DataError: the array is not ``(n, 3)``; ``relative_to="floor"`` and no floor below the
             sensor; no point in the band (the message names the band and the heights present).
     """
-    p = np.asarray(points_xyz, np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise DataError(f"{where}: a 3-D cloud must be (n, 3), got shape {p.shape}")
-    p = p[np.all(np.isfinite(p), 1)]
+    p = _finite_cloud(points_xyz, where)
     if mount is not None:
         p = mount.apply(p)
     if floor is None:
@@ -244,8 +256,7 @@ def slice_clouds(
         DataError: no cloud shows a floor (with ``relative_to="floor"``), or a cloud has no
             point in the band (named by its index).
     """
-    mounted = [np.asarray(c, np.float64).reshape(-1, 3) for c in clouds]
-    mounted = [c[np.all(np.isfinite(c), 1)] for c in mounted]
+    mounted = [_finite_cloud(c, f"{where} cloud #{i}") for i, c in enumerate(clouds)]
     if mount is not None:
         mounted = [mount.apply(c) for c in mounted]
     detected = [detect_floor(c, params.planes) for c in mounted]

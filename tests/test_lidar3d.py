@@ -183,10 +183,18 @@ def test_empty_band_and_bad_band_are_data_errors():
         BandParams(relative_to="ceiling")
     with pytest.raises(DataError, match=r"\(n, 3\)"):
         slice_cloud(np.zeros((5, 2)))
-    # Only points above the sensor: no floor to measure heights from.
-    up = cloud[cloud[:, 2] > 0.5]
+    with pytest.raises(DataError, match="Mount.rpy"):
+        Mount(rpy=(0.0, 0.1))
+    # Only points above the sensor: no floor to measure heights from ...
+    up = cloud[cloud[:, 2] > -0.1]
     with pytest.raises(DataError, match="no floor plane below the sensor"):
         slice_cloud(up)
+    with pytest.raises(DataError, match="in any of the 1 clouds"):
+        slice_clouds([up])
+    # ... unless another cloud of the same rigid sensor shows it.
+    scans, infos, detected = slice_clouds([cloud, up])
+    assert detected[1] is None and infos[1].floor.height == pytest.approx(0.5, abs=0.02)
+    assert len(scans[1]) > 100
 
 
 def test_sliced_3d_scan_matches_the_2d_ray_cast():

@@ -24,7 +24,18 @@ from shapely.geometry import Polygon, box
 
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
 
-__all__ = ["Scene", "three_rooms", "symmetric_bays", "SCENES", "get_scene", "rect_segments"]
+__all__ = [
+    "Scene",
+    "DEFAULT_CLUTTER_HEIGHT",
+    "three_rooms",
+    "symmetric_bays",
+    "SCENES",
+    "get_scene",
+    "rect_segments",
+]
+
+# A clutter segment of unknown height: taller than a desk, lower than a door head.
+DEFAULT_CLUTTER_HEIGHT = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,6 +49,9 @@ class Scene:
         trajectories: name -> ``(P, 2)`` waypoints in B (polyline; corners are smoothed by
             the trajectory sampler).
         description: a few lines on what the scene is for.
+        clutter_height: ``(K,)`` height (m) of each clutter segment above the floor, for the
+            3-D LiDAR (``inf``: up to the ceiling); ``None`` gives every segment
+            ``DEFAULT_CLUTTER_HEIGHT``. The 2-D simulator ignores it.
     """
 
     name: str
@@ -45,10 +59,19 @@ class Scene:
     clutter: np.ndarray
     trajectories: dict[str, np.ndarray] = field(default_factory=dict)
     description: str = ""
+    clutter_height: np.ndarray | None = None
 
     def __post_init__(self):
         clutter = np.asarray(self.clutter, dtype=np.float64).reshape(-1, 2, 2)
         object.__setattr__(self, "clutter", clutter)
+        h = self.clutter_height
+        h = np.full(len(clutter), DEFAULT_CLUTTER_HEIGHT) if h is None else np.asarray(h, float)
+        if h.shape != (len(clutter),) or not np.all(h > 0):
+            raise ValueError(
+                f"scene {self.name!r}: clutter_height needs {len(clutter)} heights > 0, got "
+                f"shape {h.shape} (min {np.min(h, initial=np.inf)})"
+            )
+        object.__setattr__(self, "clutter_height", h)
         trajs = {k: np.asarray(v, dtype=np.float64) for k, v in self.trajectories.items()}
         for k, v in trajs.items():
             if v.ndim != 2 or v.shape[1] != 2 or len(v) < 2:
@@ -87,6 +110,9 @@ def _clutter(rects: list[tuple[float, float, float, float]], extra=()) -> np.nda
     return np.concatenate(parts, axis=0)
 
 
+# Desk and table top height (m), for the 3-D LiDAR.
+_DESK = 0.75
+
 # ---------------------------------------------------------------------------- three rooms
 # Partition centre lines (x) and building depth (y). Room lengths 13.8 / 14.6 / 14.2 m along x
 # at the same 11.2 m depth: similar enough that a submap of one room also fits its neighbour
@@ -117,8 +143,10 @@ def three_rooms() -> Scene:
     long walls and its west wall + door in place: the one-room alias the paper reports.
 
     Clutter (LiDAR-visible, absent from the plan): desks, cabinets along walls and a meeting
-    table in every room; as-built deviations: a 3.4 m partition stub from the south wall of 209
-    at x = 38.6 (a later store-room partition) and a 2.5 m glazed partition in 207 at y = 4.6.
+    table in every room (heights for the 3-D LiDAR: desks and tables 0.75 m, cabinets 1.0-2.0 m,
+    the bookcase row in 209 and both partitions up to the ceiling); as-built deviations: a
+    3.4 m partition stub from the south wall of 209 at x = 38.6 (a later store-room partition)
+    and a 2.5 m glazed partition in 207 at y = 4.6.
 
     Trajectories: "T1" 209 -> 208 -> 207 -> 208 -> 209 (start in 209, back to 209) and "T2"
     207 -> 208 -> 209 -> 208; both about 60 m.
@@ -159,30 +187,32 @@ def three_rooms() -> Scene:
     )
     rects = [
         # 207: a row of desks along the south wall, cabinets on the north wall, a printer
-        (2.6, 1.0, 4.2, 1.8),
-        (4.6, 1.0, 6.2, 1.8),
-        (8.4, 1.0, 10.0, 1.8),
-        (3.0, 10.5, 4.8, 11.05),
-        (5.4, 10.5, 6.3, 11.05),
-        (12.6, 2.8, 13.5, 3.5),
+        (2.6, 1.0, 4.2, 1.8, _DESK),
+        (4.6, 1.0, 6.2, 1.8, _DESK),
+        (8.4, 1.0, 10.0, 1.8, _DESK),
+        (3.0, 10.5, 4.8, 11.05, 2.0),
+        (5.4, 10.5, 6.3, 11.05, 1.2),
+        (12.6, 2.8, 13.5, 3.5, 1.0),
         # 208: two desk islands, a meeting table, cabinets on both long walls
-        (16.0, 2.0, 19.2, 3.6),
-        (22.0, 1.6, 25.2, 3.2),
-        (19.8, 9.4, 23.0, 10.4),
-        (15.0, 0.15, 16.8, 0.6),
-        (25.6, 10.6, 27.4, 11.05),
-        (26.8, 0.15, 28.2, 0.7),
+        (16.0, 2.0, 19.2, 3.6, _DESK),
+        (22.0, 1.6, 25.2, 3.2, _DESK),
+        (19.8, 9.4, 23.0, 10.4, _DESK),
+        (15.0, 0.15, 16.8, 0.6, 1.2),
+        (25.6, 10.6, 27.4, 11.05, 2.0),
+        (26.8, 0.15, 28.2, 0.7, 1.6),
         # 209: desks in the south-west, a bookcase row, cabinets along the east wall
-        (30.0, 1.2, 33.2, 2.0),
-        (31.0, 3.2, 34.2, 4.0),
-        (36.2, 10.5, 39.8, 11.05),
-        (41.9, 2.0, 42.45, 4.2),
-        (41.9, 8.6, 42.45, 10.0),
+        (30.0, 1.2, 33.2, 2.0, _DESK),
+        (31.0, 3.2, 34.2, 4.0, np.inf),
+        (36.2, 10.5, 39.8, 11.05, 1.2),
+        (41.9, 2.0, 42.45, 4.2, 1.8),
+        (41.9, 8.6, 42.45, 10.0, 2.0),
     ]
     # As-built partitions (thin double-faced walls with an end cap).
     stub_209 = rect_segments(38.55, 0.15, 38.65, 3.55)
     glass_207 = rect_segments(9.6, 4.55, 12.1, 4.65)
-    clutter = _clutter(rects, extra=(stub_209, glass_207))
+    clutter = _clutter([r[:4] for r in rects], extra=(stub_209, glass_207))
+    # Furniture heights (m; inf: up to the ceiling, as the partitions and the bookcase row).
+    heights = np.repeat([r[4] for r in rects] + [np.inf, np.inf], 4)
     trajectories = {
         "T1": np.array(
             [
@@ -231,6 +261,7 @@ def three_rooms() -> Scene:
         clutter,
         trajectories,
         description="three adjacent non-congruent rooms 207-209 (multimodal aliases)",
+        clutter_height=heights,
     )
 
 
@@ -288,9 +319,9 @@ def symmetric_bays() -> Scene:
     for k, (tx, sx, cx) in enumerate(layout):
         o = xs[k]
         rects += [
-            (o + tx, 3.7, o + tx + 1.8, 4.6),  # table
-            (o + sx, h - t / 2 - 0.45, o + sx + 1.6, h - t / 2),  # shelf on the north wall
-            (o + cx, t / 2, o + cx + 0.9, t / 2 + 0.5),  # cabinet on the south wall
+            (o + tx, 3.7, o + tx + 1.8, 4.6),  # table (0.75 m)
+            (o + sx, h - t / 2 - 0.45, o + sx + 1.6, h - t / 2),  # north shelf (2.0 m)
+            (o + cx, t / 2, o + cx + 0.9, t / 2 + 0.5),  # south cabinet (1.2 m)
         ]
     start = np.array([1.0, 4.2])
     path = [[3.0, dy], [26.6, dy], [28.3, 3.2]]
@@ -304,6 +335,7 @@ def symmetric_bays() -> Scene:
         _clutter(rects),
         trajectories,
         description="four congruent bays, pitch 7.30 m, sealed ends (lattice aliases)",
+        clutter_height=np.tile(np.repeat([_DESK, 2.0, 1.2], 4), _SB_N),
     )
 
 

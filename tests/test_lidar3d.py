@@ -13,13 +13,13 @@ from hypothesis import strategies as st
 
 from mfcl_jax.floorplan.scenes import Scene, rect_segments, symmetric_bays, three_rooms
 from mfcl_jax.io.errors import DataError
-from mfcl_jax.pipeline.simdata import simulate_scans
 from mfcl_jax.sim.lidar3d import Lidar3DParams, _cast3d_jit, beam_directions, cast3d, livox_mid360
 from mfcl_jax.sim.raycast import LidarParams, cast, scan_points
 from mfcl_jax.sim.walk3d import walk3d
 from mfcl_jax.sim.world3d import build_geometry, first_hit
 from mfcl_jax.sources.cloud3d import BandParams, Mount, slice_cloud, slice_clouds
 from mfcl_jax.sources.floor import detect_floor
+from mfcl_jax.sources.simulated import simulate_walk
 
 ROOM = rect_segments(0.0, 0.0, 10.0, 10.0)  # a 10 m x 10 m room
 H_CEIL = 3.0
@@ -221,12 +221,13 @@ def test_sliced_3d_scan_matches_the_2d_ray_cast():
 
 
 # ------------------------------------------------------------------------- walks, scenes
-def test_walk3d_shares_odometry_and_2d_scans_with_simulate_scans():
+def test_walk3d_shares_odometry_and_2d_scans_with_simulate_walk():
     fp = symmetric_bays().floorplan
     wp = np.array([[1.0, 1.8], [6.0, 1.8]])
     tiny = Lidar3DParams(elevation_deg=(-7.0, 0.0, 20.0), n_azimuth=32)
     w = walk3d(fp, wp, tiny, tag="bays")
-    t, true, odo, scans = simulate_scans(fp, wp, seed=0, tag="bays")
+    rec = simulate_walk(fp, wp, seed=0, tag="bays")
+    t, true, odo, scans = rec.seq.times, rec.truth.poses, rec.seq.odometry, rec.seq.scans
     np.testing.assert_allclose(w.odom, odo)
     np.testing.assert_allclose(w.true, true)
     assert all(np.allclose(a, b) for a, b in zip(w.scans2d, scans, strict=True))

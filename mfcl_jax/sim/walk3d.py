@@ -1,14 +1,13 @@
 """A walk with a 3-D LiDAR, and the 2-D ring at the same poses.
 
-The robot follows a waypoint polyline with the 2-D simulator's path sampler and odometry drift
-(``sim.trajectory``). Keys follow ``pipeline.simdata.simulate_scans`` (same seed and tag: same
-true poses, same odometry and, without clutter, the same 2-D scans), so a 3-D walk and its 2-D
-twin differ only in the sensor.
+The walk, its odometry and the 2-D ring come from ``sources.simulated.simulate`` (same seed and
+tag: same true poses, same odometry and, without clutter, the same 2-D scans as
+``simulate_walk``); the 3-D cloud is cast at the same poses with keys derived from the same run
+key, so a 3-D walk and its 2-D twin differ only in the sensor.
 """
 
 from __future__ import annotations
 
-import zlib
 from typing import NamedTuple
 
 import jax
@@ -16,8 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax.sim.lidar3d import Lidar3DParams, cast3d
-from mfcl_jax.sim.raycast import LidarParams, cast, scan_points
-from mfcl_jax.sim.trajectory import TrajectoryParams, odometry, sample_path
+from mfcl_jax.sim.raycast import LidarParams
+from mfcl_jax.sim.trajectory import TrajectoryParams
 from mfcl_jax.sim.world3d import build_geometry
 
 __all__ = ["Walk3D", "walk3d", "scene_walk3d"]
@@ -67,26 +66,27 @@ def walk3d(
         seed: noise, dropout, pattern and odometry drift seed.
         trajectory: scan spacing, speed and drift (default ``TrajectoryParams()``).
         lidar2d: the 2-D twin's LiDAR (default ``LidarParams()``).
-        tag: names the walk in the key derivation (as ``simulate_scans``'s ``tag``).
+        tag: names the walk in the key derivation (as ``simulate_walk``'s ``tag``).
     """
-    sensor = sensor or Lidar3DParams()
-    tp = trajectory or TrajectoryParams()
-    path = sample_path(waypoints, tp)
-    true = path.poses
-    key = jax.random.fold_in(jax.random.PRNGKey(int(seed)), zlib.crc32(tag.encode()) & 0x7FFFFFFF)
-    noise = jax.random.normal(jax.random.fold_in(key, 1), true.shape)
-    odo = odometry(
-        jnp.asarray(true, jnp.float32),
-        jnp.asarray(true[0], jnp.float32),
-        noise,
-        tp.drift_xy,
-        np.deg2rad(tp.drift_yaw_deg_per_m),
-    )
-    idx = jnp.arange(len(true))
-    keys2d = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(key, 0), idx)
-    keys3d = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(key, 2), idx)
+    from mfcl_jax.floorplan.scenes import Scene
+    from mfcl_jax.sim import SimParams
+    from mfcl_jax.sources.simulated import run_key, simulate
 
+    sensor = sensor or Lidar3DParams()
     walls = np.asarray(floorplan.wall_faces, np.float64)
+    segs = walls
+    if clutter is not None and len(clutter):
+        c = np.asarray(clutter, np.float64).reshape(-1, 2, 2)
+        h = np.full(len(c), np.inf) if clutter_height is None else np.asarray(clutter_height)
+        segs = np.concatenate([walls, c[h > sensor.height]])
+    name = floorplan.name or "plan"
+    scene = Scene(name, floorplan, np.zeros((0, 2, 2)), {tag: waypoints})
+    params = SimParams(lidar=lidar2d or LidarParams(), trajectory=trajectory or TrajectoryParams())
+    rec = simulate(scene, [tag], [seed], params, segments=segs)[0]
+    true = rec.truth.poses
+    idx = jnp.arange(len(true))
+    k3 = jax.random.fold_in(run_key(seed, name, tag), 2)
+    keys3d = jax.vmap(jax.random.fold_in, in_axes=(None, 0))(k3, idx)
     geom = build_geometry(walls, clutter, clutter_height, h_ceil)
     # Pad the scan count to a multiple of 64: one compilation for walks of similar length.
     n = len(true)
@@ -94,16 +94,7 @@ def walk3d(
     poses = np.concatenate([true, np.repeat(true[-1:], cap - n, 0)])
     keys = jnp.concatenate([keys3d, jnp.zeros((cap - n, 2), keys3d.dtype)])
     clouds = np.asarray(cast3d(poses, geom, sensor, key=keys))[:n]
-
-    segs = walls
-    if clutter is not None and len(clutter):
-        c = np.asarray(clutter, np.float64).reshape(-1, 2, 2)
-        h = np.full(len(c), np.inf) if clutter_height is None else np.asarray(clutter_height)
-        segs = np.concatenate([walls, c[h > sensor.height]])
-    ranges = cast(true, segs, lidar2d or LidarParams(), key=keys2d)
-    pts = np.asarray(scan_points(ranges), np.float64)
-    scans2d = [q[np.all(np.isfinite(q), 1)] for q in pts]
-    return Walk3D(path.t, true, np.asarray(odo, np.float64), clouds, scans2d)
+    return Walk3D(rec.seq.times, true, rec.seq.odometry, clouds, list(rec.seq.scans))
 
 
 def scene_walk3d(scene, name: str, sensor: Lidar3DParams | None = None, **kwargs) -> Walk3D:

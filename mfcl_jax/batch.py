@@ -1,7 +1,8 @@
 """The padded batches that cross module boundaries.
 
-Data flows one way: simulator or dataset reader -> ``SubmapBatch`` + ``RunBatch`` (+ ``Truth``,
-kept apart and used only to score) -> front-end -> ``Candidates`` -> decision layer.
+Data flows one way: ``windows.pack`` -> ``SubmapBatch`` + ``RunBatch`` -> front-end ->
+``Candidates`` -> decision layer. Ground truth is not here: it stays in the recordings and only
+the scorer reads it.
 All are JAX pytrees of arrays padded on the host; every ragged axis has a boolean mask.
 
 Shapes: ``N`` submaps (all runs stacked), ``P`` points per submap (capacity bucket), ``R`` runs,
@@ -18,12 +19,10 @@ import numpy as np
 __all__ = [
     "SubmapBatch",
     "RunBatch",
-    "Truth",
     "Candidates",
     "REASONS",
     "bucket",
     "pad_submaps",
-    "concat",
 ]
 
 
@@ -79,6 +78,7 @@ class RunBatch:
         traj: ``(R, T, 3)`` odometry poses ``^L T_t`` of the scans (sensor poses in L).
         traj_t: ``(R, T)`` float64 scan time stamps.
         traj_mask: ``(R, T)`` bool.
+        window_start: ``(R, K)`` int32 index into ``traj`` of window k's first scan.
         window_end: ``(R, K)`` int32 index into ``traj`` of window k's last scan.
         window_mask: ``(R, K)`` bool, valid windows.
         submap: ``(R, K)`` int32 row of ``SubmapBatch`` holding window k (-1 where padded).
@@ -87,6 +87,7 @@ class RunBatch:
     traj: jax.Array
     traj_t: jax.Array
     traj_mask: jax.Array
+    window_start: jax.Array
     window_end: jax.Array
     window_mask: jax.Array
     submap: jax.Array
@@ -98,21 +99,6 @@ class RunBatch:
     @property
     def n_windows(self) -> int:
         return int(self.window_mask.shape[1])
-
-
-@dataclass(frozen=True)
-class Truth:
-    """Ground truth, for scoring only: never passed to the front-end or decision layer.
-
-    Attributes:
-        traj: ``(R, T, 3)`` true sensor poses ``^B T_t`` aligned with ``RunBatch.traj``.
-        anchor: ``(R, 3)`` the hidden ``^B T_L`` at the start of each run.
-        Y: ``(N, 3)`` true ``^B T_{S_i}`` per submap.
-    """
-
-    traj: np.ndarray
-    anchor: np.ndarray
-    Y: np.ndarray
 
 
 # Why a submap produced no candidates (Candidates.reason); the decision layer reports DEFER.
@@ -174,67 +160,4 @@ def pad_submaps(sub: SubmapBatch, n: int | None = None, p: int | None = None) ->
         window=_pad_axis(sub.window, 0, n, -1),
         t=_pad_axis(sub.t, 0, n, np.nan),
         n_dropped=_pad_axis(sub.n_dropped, 0, n, 0),
-    )
-
-
-def concat(parts: list[tuple[SubmapBatch, RunBatch, Truth]]):
-    """Stacks several (submaps, runs, truth) batches into one, re-indexing runs and submaps.
-
-    Returns:
-        ``(SubmapBatch, RunBatch, Truth, run_offsets, submap_offsets)``; run ``r`` of part ``i``
-        becomes run ``run_offsets[i] + r``.
-    """
-    p = max(int(s.points.shape[1]) for s, _, _ in parts)
-    k = max(r.n_windows for _, r, _ in parts)
-    t = max(int(r.traj.shape[1]) for _, r, _ in parts)
-    subs, runs, truths, run_off, sub_off = [], [], [], [], []
-    n_runs = n_subs = 0
-    for s, r, tr in parts:
-        run_off.append(n_runs)
-        sub_off.append(n_subs)
-        s = pad_submaps(jax.tree.map(np.asarray, s), p=p)
-        subs.append(
-            SubmapBatch(
-                s.points,
-                s.origins,
-                s.mask,
-                s.X,
-                np.where(s.run >= 0, s.run + n_runs, -1),
-                s.window,
-                s.t,
-                s.n_dropped,
-            )
-        )
-        r = jax.tree.map(np.asarray, r)
-        submap = _pad_axis(np.where(r.submap >= 0, r.submap + n_subs, -1), 1, k, -1)
-        runs.append(
-            RunBatch(
-                traj=_pad_axis(r.traj, 1, t, 0.0),
-                traj_t=_pad_axis(r.traj_t, 1, t, np.nan),
-                traj_mask=_pad_axis(r.traj_mask, 1, t, False),
-                window_end=_pad_axis(r.window_end, 1, k, 0),
-                window_mask=_pad_axis(r.window_mask, 1, k, False),
-                submap=submap,
-            )
-        )
-        truths.append(
-            Truth(
-                traj=_pad_axis(np.asarray(tr.traj), 1, t, 0.0),
-                anchor=np.asarray(tr.anchor),
-                Y=np.asarray(tr.Y),
-            )
-        )
-        n_runs += r.n_runs
-        n_subs += s.n
-    cat = lambda *xs: np.concatenate(xs, axis=0)  # noqa: E731
-    return (
-        jax.tree.map(cat, *subs),
-        jax.tree.map(cat, *runs),
-        Truth(
-            traj=np.concatenate([x.traj for x in truths]),
-            anchor=np.concatenate([x.anchor for x in truths]),
-            Y=np.concatenate([x.Y for x in truths]),
-        ),
-        run_off,
-        sub_off,
     )

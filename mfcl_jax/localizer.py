@@ -138,7 +138,14 @@ class Localizer:
             m = cand.mask[0]
             traj = seq.odometry[kf[prev_end + 1 : j1 + 1]]
             prev_end = int(j1)
-            dec = init.update(cand.pose[0][m], cand.score[0][m], w.X[k], traj, t=float(w.t[k]))
+            dec = init.update(
+                cand.pose[0][m],
+                cand.score[0][m],
+                w.X[k],
+                traj,
+                t=float(w.t[k]),
+                window_start=int(j0),
+            )
             yield WindowResult(
                 decision=dec,
                 first=int(kf[j0]),

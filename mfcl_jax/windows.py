@@ -298,6 +298,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     traj = np.zeros((R, T, 3), np.float32)
     traj_t = np.full((R, T), np.nan)
     traj_mask = np.zeros((R, T), bool)
+    window_start = np.zeros((R, K), np.int32)
     window_end = np.zeros((R, K), np.int32)
     window_mask = np.zeros((R, K), bool)
     submap = np.full((R, K), -1, np.int32)
@@ -312,10 +313,11 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
             X[i], run[i], window[i], t[i], building[i] = w.X[k], r, k, w.t[k], b
             submap[r, k] = i
             i += 1
+        window_start[r, : len(w)] = w.bounds[:, 0]
         window_end[r, : len(w)] = w.bounds[:, 1]
         window_mask[r, : len(w)] = True
     subs = SubmapBatch(points, origins, mask, X, run, window, t, np.zeros(n, np.int32))
-    runs = RunBatch(traj, traj_t, traj_mask, window_end, window_mask, submap)
+    runs = RunBatch(traj, traj_t, traj_mask, window_start, window_end, window_mask, submap)
     rb = np.asarray([b for *_, b in items], np.int32)
     return WindowBatch(subs, runs, building, rb, [w for _, w, _ in items])
 
@@ -360,6 +362,7 @@ def concat(batches) -> WindowBatch:
                 pad(r.traj, 1, T, 0.0),
                 pad(r.traj_t, 1, T, np.nan),
                 pad(r.traj_mask, 1, T, False),
+                pad(r.window_start, 1, K, 0),
                 pad(r.window_end, 1, K, 0),
                 pad(r.window_mask, 1, K, False),
                 pad(

@@ -49,6 +49,7 @@ def drifted_run(cand_fn, drift=DRIFT):
         mask=M,
         traj=traj_l.astype(np.float32),
         traj_mask=np.ones(t, bool),
+        window_start=np.concatenate([[0], ends[:-1] + 1]).astype(np.int32),
         window_end=ends,
         window_mask=np.ones(K, bool),
     )

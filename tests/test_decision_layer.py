@@ -55,7 +55,7 @@ def pad_run(run):
 
 def evaluate_runs(runs, maps=ROW, params=P1):
     runs = [pad_run(r) for r in runs]
-    keys = ("H", "score", "mask", "traj", "traj_mask", "window_end", "window_mask")
+    keys = ("H", "score", "mask", "traj", "traj_mask", "window_start", "window_end", "window_mask")
     b = [jnp.asarray(np.stack([r[k] for r in runs])) for k in keys]
     out = evaluate(*b, maps, params, variants())
     return jax.tree.map(np.asarray, out)

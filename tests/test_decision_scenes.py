@@ -96,6 +96,7 @@ def make_run(traj_b, anchor, n_windows, cand_fn, J=8):
         mask=M,
         traj=traj_l.astype(np.float32),
         traj_mask=np.ones(t, bool),
+        window_start=np.concatenate([[0], ends[:-1] + 1]).astype(np.int32),  # disjoint windows
         window_end=ends,
         window_mask=np.ones(n_windows, bool),
         X=X,

@@ -8,9 +8,14 @@
   both ``delta_xy`` and ``delta_theta``, the nearest in planar distance among several, or
   opens a new group. Distance to the group anchor, never chaining through members; the two
   tolerances are tested separately, never mixed into one norm.
-* ``B_m`` is the group size (one champion per submap, so distinct submaps per group). The
-  winner is the largest group, ties to the group with the higher-scored leader;
-  ``margin = B1 - B2``.
+* ``B_m`` counts INDEPENDENT evidence: the largest number of the group's champions whose
+  windows share no scan (windows are intervals of keyframes; the greedy earliest-ending choice
+  is optimal for intervals, and windows end in index order). With ``d_s = 6`` m and a 2 m
+  step, windows ``k`` and ``k + 3`` are disjoint, so three overlapping windows that saw one
+  10 m stretch count once, not three times: the champions counted are computed from disjoint
+  scan sets, which is the independence Proposition 1 assumes. The raw member count is kept as
+  ``size``. The winner has the largest ``B_m``, ties to the larger raw group, then to the group
+  with the higher-scored leader; ``margin = B1 - B2``.
 * Two means of the winner (arithmetic xy, circular yaw), because odometry drifts and an anchor
   is exact only near the time it was estimated:
 
@@ -32,7 +37,7 @@ import jax.numpy as jnp
 
 from mfcl_jax import se2
 
-__all__ = ["Champions", "Groups", "champions", "group", "leader_groups"]
+__all__ = ["Champions", "Groups", "champions", "group", "leader_groups", "disjoint_count"]
 
 
 @dataclass(frozen=True)
@@ -50,7 +55,8 @@ class Groups:
     """Consensus groups at one prefix (group axis padded to ``K``)."""
 
     assign: jax.Array  # (K,) int32 group of each champion, -1 if none
-    size: jax.Array  # (K,) int32 B_m per group slot
+    size: jax.Array  # (K,) int32 raw member count per group slot
+    indep: jax.Array  # (K,) int32 B_m: members in pairwise scan-disjoint windows
     anchor: jax.Array  # (K, 3) mean pose of each group
     n_groups: jax.Array  # () int32
     winner: jax.Array  # () int32
@@ -112,7 +118,30 @@ def leader_groups(pose, weight, has, delta_xy, delta_theta):
     return jax.lax.fori_loop(0, m, body, init)
 
 
-def group(ch: Champions, delta_xy, delta_theta, recent=0) -> Groups:
+def disjoint_count(onehot, start, end):
+    """Per group, the most members whose windows pairwise share no scan.
+
+    Args:
+        onehot: ``(G, K)`` bool membership; start, end: ``(K,)`` keyframe bounds of the windows
+            (inclusive), non-decreasing in ``k``.
+
+    Returns:
+        ``(G,)`` int32.
+    """
+
+    def step(carry, x):
+        last, n = carry
+        m, s, e = x
+        take = m & (s > last)
+        return (jnp.where(take, e, last), n + take.astype(jnp.int32)), None
+
+    g = onehot.shape[0]
+    init = (jnp.full((g,), -1, start.dtype), jnp.zeros((g,), jnp.int32))
+    (_, n), _ = jax.lax.scan(step, init, (onehot.T, start, end))
+    return n
+
+
+def group(ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None) -> Groups:
     """Groups champions and summarises consensus (see the module docstring).
 
     Args:
@@ -120,15 +149,21 @@ def group(ch: Champions, delta_xy, delta_theta, recent=0) -> Groups:
         delta_xy, delta_theta: grouping tolerances (traced).
         recent: ``()`` number of most recent winner champions averaged into ``t_star``
             (traced; ``<= 0``: all of them).
+        start, end: ``(K,)`` keyframe bounds of the windows; ``None`` treats every window as
+            disjoint from the others (``B_m`` = member count).
     """
     k = ch.pose.shape[0]
     assign, _, ng = leader_groups(ch.pose, ch.score, ch.has, delta_xy, delta_theta)
     onehot = (assign[None, :] == jnp.arange(k)[:, None]) & ch.has[None, :]  # (G, K)
     size = jnp.sum(onehot, axis=1).astype(jnp.int32)
+    if start is None:
+        indep = size
+    else:
+        indep = disjoint_count(onehot, jnp.asarray(start), jnp.asarray(end))
     anchor = se2.mean_pose(jnp.broadcast_to(ch.pose, (k, k, 3)), onehot.astype(ch.pose.dtype))
-    winner = jnp.argmax(size).astype(jnp.int32)  # first max: the group opened first
-    b1 = size[winner]
-    b2 = jnp.max(jnp.where(jnp.arange(k) == winner, 0, size))
+    winner = jnp.argmax(indep * (k + 1) + size).astype(jnp.int32)  # first max: opened first
+    b1 = indep[winner]
+    b2 = jnp.max(jnp.where(jnp.arange(k) == winner, 0, indep))
     members = onehot[winner]
     t_all = anchor[winner]
     dxy, _ = se2.distance_pair(ch.pose, t_all)
@@ -138,4 +173,4 @@ def group(ch: Champions, delta_xy, delta_theta, recent=0) -> Groups:
     recent = jnp.asarray(recent, jnp.float32)
     take = members & ((later.astype(jnp.float32) < recent) | (recent <= 0))
     t_star = se2.mean_pose(ch.pose, take.astype(ch.pose.dtype))
-    return Groups(assign, size, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread, t_all)
+    return Groups(assign, size, indep, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread, t_all)

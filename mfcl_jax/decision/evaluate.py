@@ -47,6 +47,7 @@ def evaluate_run(
     mask,
     traj,
     traj_mask,
+    window_start,
     window_end,
     window_mask,
     maps,
@@ -58,7 +59,8 @@ def evaluate_run(
 
     Args:
         H: ``(K, J, 3)`` anchors; score, mask: ``(K, J)`` (padded windows masked).
-        traj: ``(T, 3)``; traj_mask: ``(T,)``; window_end: ``(K,)``; window_mask: ``(K,)``.
+        traj: ``(T, 3)``; traj_mask: ``(T,)``; window_start, window_end: ``(K,)`` first and
+            last trajectory sample of each window; window_mask: ``(K,)``.
         maps: ``GateMaps``; params: ``DecisionParams`` with leaves ``(S,)``;
         var: ``Variants`` with leaves ``(V0,)``.
 
@@ -73,8 +75,8 @@ def evaluate_run(
     def ours_prefix(p, k):
         def core(ug):
             cons = table[:, :, k]
-            end = window_end[k]
-            return prefix_core(k, H, score, mask, cons, traj, traj_mask, end, maps, p, ug, n_cap)
+            bounds = (window_start, window_end)
+            return prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p, ug, n_cap)
 
         cores = jax.vmap(core)(modes)
 
@@ -102,6 +104,7 @@ def evaluate(
     mask,
     traj,
     traj_mask,
+    window_start,
     window_end,
     window_mask,
     maps,
@@ -115,11 +118,12 @@ def evaluate(
     batched_maps = maps.label.ndim == 3
 
     def one(xs):
-        h, s, m, t, tm, we, wm, mp = xs
+        h, s, m, t, tm, ws, we, wm, mp = xs
         mp = mp if batched_maps else maps
-        return evaluate_run(h, s, m, t, tm, we, wm, mp, params, var, n_cap)
+        return evaluate_run(h, s, m, t, tm, ws, we, wm, mp, params, var, n_cap)
 
-    xs = (H, score, mask, traj, traj_mask, window_end, window_mask, maps if batched_maps else None)
+    mp = maps if batched_maps else None
+    xs = (H, score, mask, traj, traj_mask, window_start, window_end, window_mask, mp)
     return jax.lax.map(one, xs, batch_size=run_chunk)
 
 
@@ -143,6 +147,7 @@ def batch_inputs(cands, submaps, runs, maps, params, var=None):
         m,
         runs.traj,
         runs.traj_mask,
+        runs.window_start,
         runs.window_end,
         runs.window_mask,
         maps,

@@ -174,12 +174,14 @@ jax.tree_util.register_dataclass(
 
 
 def prefix_core(
-    k, H, score, mask, cons, traj, traj_mask, end, maps, p: DecisionParams, use_gate, n_cap=3
+    k, H, score, mask, cons, traj, traj_mask, bounds, maps, p: DecisionParams, use_gate, n_cap=3
 ) -> PrefixCore:
     """Champions, groups, the all-group lattice and the probe at prefix ``k``.
 
     Args: as ``decide_prefix``.
     """
+    wstart, wend = bounds
+    end = wend[k]
     kk = H.shape[0]
     visible = mask & (jnp.arange(kk) <= k)[:, None]
     any_anchor = jnp.any(visible)
@@ -187,7 +189,7 @@ def prefix_core(
     max_score = jnp.where(any_anchor, max_score, 0.0)
     admitted = visible & (score >= p.score_floor) & ((cons >= p.tau_c) | ~use_gate)
     ch = consensus.champions(H, score, admitted)
-    g = consensus.group(ch, p.delta_xy, p.delta_theta, p.recent)
+    g = consensus.group(ch, p.delta_xy, p.delta_theta, p.recent, wstart, wend)
     live = jnp.arange(kk) < g.n_groups
     fit = lattice.prepare(g.anchor, g.winner, maps.offsets, p.eps_t)
     all_ok, all_tau = lattice.detect_from(
@@ -213,7 +215,7 @@ def finish(
     g = core.groups
     kk = g.size.shape[0]
     live = jnp.arange(kk) < g.n_groups
-    tied = live & ((g.b1 - g.size).astype(jnp.float32) < delta_min)
+    tied = live & ((g.b1 - g.indep).astype(jnp.float32) < delta_min)
     lat_ok, lat_tau = lattice.detect_from(
         core.fit, tied, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
     )
@@ -282,7 +284,7 @@ def decide_prefix(
     cons,
     traj,
     traj_mask,
-    end,
+    bounds,
     maps,
     p: DecisionParams,
     use_gate,
@@ -298,11 +300,12 @@ def decide_prefix(
         H: ``(K, J, 3)`` anchors; score: ``(K, J)``; mask: ``(K, J)`` valid candidates
             (padded windows already masked).
         cons: ``(K, J)`` gate consistency of each candidate at this prefix.
-        traj: ``(T, 3)``; traj_mask: ``(T,)``; end: last trajectory sample of prefix ``k``.
+        traj: ``(T, 3)``; traj_mask: ``(T,)``.
+        bounds: ``(start (K,), end (K,))`` first and last trajectory sample of every window.
         maps: ``GateMaps``; p: scalar ``DecisionParams``.
         use_gate, use_probe: ``()`` bool variant flags (traced).
         b_min, delta_min: ``()`` commit floors (traced; the variant may override ``p``'s).
         n_cap: static probe shift capacity.
     """
-    core = prefix_core(k, H, score, mask, cons, traj, traj_mask, end, maps, p, use_gate, n_cap)
+    core = prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p, use_gate, n_cap)
     return finish(core, maps, p, use_gate, use_probe, b_min, delta_min)

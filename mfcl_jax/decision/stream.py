@@ -75,13 +75,29 @@ class Decision:
 
 
 @partial(jax.jit, static_argnames=("n_cap",))
-def _decide_latest(H, score, mask, traj, traj_mask, window_end, k, maps, p, flags, n_cap=3):
+def _decide_latest(
+    H, score, mask, traj, traj_mask, window_start, window_end, k, maps, p, flags, n_cap=3
+):
     cons = gate_mod.consistency_at(maps, H, traj, traj_mask, window_end[k])
     ug, up, bm, dm = flags
     bm = jnp.where(bm < 0, p.b_min, bm)
     dm = jnp.where(dm < 0, p.delta_min, dm)
     return decide_prefix(
-        k, H, score, mask, cons, traj, traj_mask, window_end[k], maps, p, ug, up, bm, dm, n_cap
+        k,
+        H,
+        score,
+        mask,
+        cons,
+        traj,
+        traj_mask,
+        (window_start, window_end),
+        maps,
+        p,
+        ug,
+        up,
+        bm,
+        dm,
+        n_cap,
     )
 
 
@@ -131,13 +147,20 @@ class SelectiveInitializer:
         self.mask = np.zeros((k_cap, j_cap), bool)
         self.traj = np.zeros((t_cap, 3), np.float32)
         self.traj_mask = np.zeros(t_cap, bool)
+        self.window_start = np.zeros(k_cap, np.int32)
         self.window_end = np.zeros(k_cap, np.int32)
         self.k = 0
         self.t = 0
         self.n_rejected = 0
 
     def update(
-        self, candidate_poses, scores, X_i, trajectory_poses_since_last, t: float | None = None
+        self,
+        candidate_poses,
+        scores,
+        X_i,
+        trajectory_poses_since_last,
+        t: float | None = None,
+        window_start: int | None = None,
     ) -> Decision:
         """Adds one window and returns the decision at this prefix.
 
@@ -148,6 +171,9 @@ class SelectiveInitializer:
             trajectory_poses_since_last: ``(T_i, 3)`` odometry poses since the last update, the
                 last one being this window's last scan.
             t: optional time stamp echoed in the decision.
+            window_start: index (into all trajectory samples given so far, from 0) of this
+                window's first scan, so overlapping windows count as one piece of evidence
+                (``consensus.disjoint_count``); default: the first sample of this update.
         """
         Y = np.asarray(candidate_poses, np.float32).reshape(-1, 3)
         s = np.asarray(scores, np.float32).reshape(-1)
@@ -165,6 +191,7 @@ class SelectiveInitializer:
         self.H = _grow(_grow(self.H, 0, self.k + 1, 0.0), 1, j, 0.0)
         self.score = _grow(_grow(self.score, 0, self.k + 1, 0.0), 1, j, 0.0)
         self.mask = _grow(_grow(self.mask, 0, self.k + 1, False), 1, j, False)
+        self.window_start = _grow(self.window_start, 0, self.k + 1, 0)
         self.window_end = _grow(self.window_end, 0, self.k + 1, 0)
         self.traj = _grow(self.traj, 0, self.t + tr.shape[0], 0.0)
         self.traj_mask = _grow(self.traj_mask, 0, self.t + tr.shape[0], False)
@@ -176,6 +203,8 @@ class SelectiveInitializer:
         self.traj_mask[self.t : self.t + tr.shape[0]] = True
         self.t += tr.shape[0]
         self.window_end[self.k] = self.t - 1
+        first_new = self.t - tr.shape[0]
+        self.window_start[self.k] = first_new if window_start is None else int(window_start)
         self.k += 1
         d = _decide_latest(
             self.H,
@@ -183,6 +212,7 @@ class SelectiveInitializer:
             self.mask,
             self.traj,
             self.traj_mask,
+            self.window_start,
             self.window_end,
             jnp.int32(self.k - 1),
             self._maps,

@@ -40,8 +40,7 @@ def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
     wm = np.asarray(batch.runs.window_mask).copy()
     wm[:, k_star:] = False
     rb = batch.runs
-    batch = replace(batch, runs=type(rb)(rb.traj, rb.traj_t, rb.traj_mask, rb.window_end, wm,
-                                         rb.submap))  # fmt: skip
+    batch = replace(batch, runs=replace(rb, window_mask=wm))
     flooded = density.flood(sub_c, cfg.density_factor, seed=cfg.main_seed)
     frames = []
     pools = []

@@ -38,6 +38,9 @@ class Scene:
         trajectories: name -> ``(P, 2)`` waypoints in B (polyline; corners are smoothed by
             the trajectory sampler).
         description: a few lines on what the scene is for.
+        as_built: ``(F, 2, 2)`` wall-face segments the LiDAR actually sees, where reality
+            deviates from the plan (a missing wall, a moved door, a plan drawn at the wrong
+            scale); ``None`` when the walls are as designed (``floorplan.wall_faces``).
     """
 
     name: str
@@ -45,10 +48,14 @@ class Scene:
     clutter: np.ndarray
     trajectories: dict[str, np.ndarray] = field(default_factory=dict)
     description: str = ""
+    as_built: np.ndarray | None = None
 
     def __post_init__(self):
         clutter = np.asarray(self.clutter, dtype=np.float64).reshape(-1, 2, 2)
         object.__setattr__(self, "clutter", clutter)
+        if self.as_built is not None:
+            faces = np.asarray(self.as_built, dtype=np.float64).reshape(-1, 2, 2)
+            object.__setattr__(self, "as_built", faces)
         trajs = {k: np.asarray(v, dtype=np.float64) for k, v in self.trajectories.items()}
         for k, v in trajs.items():
             if v.ndim != 2 or v.shape[1] != 2 or len(v) < 2:
@@ -60,8 +67,9 @@ class Scene:
 
     @property
     def segments(self) -> np.ndarray:
-        """Everything the LiDAR can hit: wall faces then clutter, ``(F + K, 2, 2)``."""
-        return np.concatenate([self.floorplan.wall_faces, self.clutter], axis=0)
+        """Everything the LiDAR can hit: real wall faces then clutter, ``(F + K, 2, 2)``."""
+        walls = self.floorplan.wall_faces if self.as_built is None else self.as_built
+        return np.concatenate([walls, self.clutter], axis=0)
 
 
 def rect_segments(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:

@@ -11,18 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, MultiLineString
+from shapely.geometry import LineString, MultiLineString, Polygon
 from shapely.ops import unary_union
 
 from mfcl_jax.floorplan.scenes import rect_segments
 from mfcl_jax.sim.trajectory import sample_path
 
-__all__ = ["furnish", "WALK_KEEP_OUT"]
+__all__ = ["furnish", "door_zone", "WALK_KEEP_OUT"]
 
-# Furniture keeps this far (m) from every walk, and this far from door openings.
+# Furniture keeps this far (m) from every walk.
 WALK_KEEP_OUT = 0.5
-_DOOR_KEEP_OUT = 0.6
-_GAP = 0.10  # between two items
+# ... and out of a box round each door: this far along the wall from the door's centre and this
+# far from the wall's centre line on both sides (the door's swing and approach).
+_DOOR_ALONG, _DOOR_ACROSS = 1.2, 1.4
+_GAP = 0.06  # between two items
 
 
 def furnish(fp, walks, fraction: float, rng: np.random.Generator, world=None, existing=None):
@@ -56,7 +58,7 @@ def furnish(fp, walks, fraction: float, rng: np.random.Generator, world=None, ex
             break
         cand = _random_items(rng, room_bounds, 160)
         total = _accept(cand, allowed, placed, total, target)
-    for pitch in (1.6, 1.25):
+    for pitch in (1.6, 1.25, 1.0, 0.8, 0.6, 0.6):
         if total >= target:
             break
         cand = _grid_items(rng, allowed.bounds, pitch)
@@ -74,7 +76,7 @@ def _keep_out(fp, walks, world, existing):
         parts.append(LineString(wp).buffer(WALK_KEEP_OUT, quad_segs=4))
         parts.append(path.buffer(WALK_KEEP_OUT, quad_segs=4))
     for d in fp.doors:
-        parts.append(LineString(d.segment).buffer(_DOOR_KEEP_OUT, quad_segs=4))
+        parts.append(door_zone(d.segment))
     if world is not None and len(world):
         parts.append(MultiLineString(list(np.asarray(world, float))).buffer(0.03, quad_segs=2))
     if existing is not None and len(existing):
@@ -82,6 +84,16 @@ def _keep_out(fp, walks, world, existing):
         parts.append(lines.buffer(_GAP))
         parts.extend(shapely.get_parts(shapely.polygonize(shapely.get_parts(lines))))
     return unary_union(parts)
+
+
+def door_zone(segment) -> Polygon:
+    """The box kept free of furniture round a door (``segment`` runs across the opening)."""
+    seg = np.asarray(segment, float)
+    c, n = seg.mean(0), seg[1] - seg[0]
+    n = n / np.linalg.norm(n)
+    u = np.array([-n[1], n[0]]) * _DOOR_ALONG
+    n = n * _DOOR_ACROSS
+    return Polygon([c - u - n, c + u - n, c + u + n, c - u + n])
 
 
 def _random_items(rng, room_bounds, n):

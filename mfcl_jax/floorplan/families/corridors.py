@@ -63,7 +63,7 @@ def bays(rng, name: str):
     start = bay_names[int(rng.integers(1, n - 1))]
     wk = Walk(built, start, random_point(built.fp.room(start).polygon, rng))
     target = draw(rng, 40, 70)
-    walks["A"] = wk.wander(rng, ["C", *bay_names], target, visit=0.9).waypoints(target)
+    walks["A"] = wk.wander(rng, ["C", *bay_names], target, visit=0.9, reach=8.0).waypoints(target)
     # B: from the west end of the corridor to its east end, then on through the building.
     wk = Walk(built, "C", (1.2, axis)).to((length - 1.2, axis))
     target = max(38.0, draw(rng, min(wk.length + 5, 75), 78))

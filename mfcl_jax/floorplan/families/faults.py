@@ -118,23 +118,41 @@ def _faces(fp: Floorplan, walls=None, thickness=None, solid=None) -> np.ndarray:
 
 
 def _missing_wall(scene, fp, rng):
+    """Removes one interior wall segment (between two junctions or a junction and a door);
+    in a plan without interior walls, a 1.5-3 m stretch of an outer wall (a gap to outside)."""
     floor = shapely.union_all([r.polygon for r in fp.rooms])
-    cands = []
+    inner, outer = [], []
     for i, (seg, t) in enumerate(zip(fp.walls, fp.thickness, strict=True)):
         d = seg[1] - seg[0]
-        if np.linalg.norm(d) < 1.0:
-            continue
         n = np.array([-d[1], d[0]]) / np.linalg.norm(d) * (t / 2 + 0.15)
         mid = seg.mean(0)
-        if floor.covers(shapely.points([mid + n, mid - n])).all():
-            cands.append(i)
-    if not cands:
-        raise ValueError(f"with_as_built: {scene.name!r} has no interior wall to remove")
-    i = int(rng.choice(cands))
-    keep = np.arange(len(fp.walls)) != i
-    faces = _faces(fp, fp.walls[keep], fp.thickness[keep])
-    a, b = fp.walls[i].round(2).tolist()
-    return _deviate(scene, faces, f"wall {a}-{b} missing")
+        inside = floor.covers(shapely.points([mid + n, mid - n]))
+        if inside.all() and np.linalg.norm(d) >= 0.5:
+            inner.append(i)
+        elif inside.any() and np.linalg.norm(d) >= 4.0:
+            outer.append(i)
+    walls, thick = list(fp.walls), list(fp.thickness)
+    if inner:
+        i = int(rng.choice(inner))
+        a, b = fp.walls[i].round(2).tolist()
+        what = f"wall {a}-{b} missing"
+        del walls[i], thick[i]
+    elif outer:
+        i = int(rng.choice(outer))
+        p, q = fp.walls[i]
+        run = float(np.linalg.norm(q - p))
+        gap = rng.uniform(1.5, 3.0)
+        s0 = rng.uniform(1.0, run - 1.0 - gap)
+        u = (q - p) / run
+        walls[i] = np.stack([p, p + s0 * u])
+        walls.append(np.stack([p + (s0 + gap) * u, q]))
+        thick.append(thick[i])
+        at = (p + (s0 + gap / 2) * u).round(2).tolist()
+        what = f"a {gap:.1f} m stretch of the outer wall at {at} missing"
+    else:
+        raise ValueError(f"with_as_built: {scene.name!r} has no wall that can be missing")
+    faces = _faces(fp, np.asarray(walls), np.asarray(thick))
+    return _deviate(scene, faces, what)
 
 
 def _extra_partition(scene, fp, rng):
@@ -167,7 +185,11 @@ def _extra_partition(scene, fp, rng):
 
 
 def _moved_door(scene, fp, rng):
+    """Shifts one door opening 0.6-1.5 m along its wall; walks through it detour to it."""
+    if not fp.doors:
+        raise ValueError(f"with_as_built: {scene.name!r} has no door to move")
     solid = fp.wall_solid
+    shifts = np.round(np.arange(0.6, 1.51, 0.1), 2)
     for j in rng.permutation(len(fp.doors)):
         door = fp.doors[j]
         mid = np.asarray(door.segment, float).mean(0)
@@ -177,16 +199,14 @@ def _moved_door(scene, fp, rng):
         t = _thickness_at(fp, mid, u)
         gaps = LineString([mid - 30 * u, mid + 30 * u]).difference(solid)
         gap = next(
-            (g for g in getattr(gaps, "geoms", [gaps]) if g.distance(shapely.Point(mid)) < 1e-6),
-            None,
+            (g for g in shapely.get_parts(gaps) if g.distance(shapely.Point(mid)) < 1e-6), None
         )
         if t is None or gap is None:
             continue
         a, b = np.asarray(gap.coords)[[0, -1]]
         width, centre = float(np.linalg.norm(b - a)), (a + b) / 2
-        for sign in rng.permutation([-1.0, 1.0]):
-            shift = float(sign * rng.uniform(0.6, 1.5))
-            moved = _try_move(scene, fp, solid, centre, u, n, width, t, shift)
+        for shift in rng.permutation(np.concatenate([shifts, -shifts])):
+            moved = _try_move(scene, fp, solid, centre, u, n, width, t, float(shift))
             if moved is not None:
                 faces, walks = moved
                 what = f"door {'/'.join(door.rooms)} opening moved {shift:+.2f} m along its wall"
@@ -195,6 +215,8 @@ def _moved_door(scene, fp, rng):
 
 
 def _try_move(scene, fp, solid, centre, u, n, width, t, shift):
+    """The real wall faces and walks with the opening at ``centre + shift u``, or None."""
+
     def rect(c, half_u, half_n):
         return Polygon(
             [
@@ -205,28 +227,41 @@ def _try_move(scene, fp, solid, centre, u, n, width, t, shift):
             ]
         )
 
-    old, new_c = rect(centre, width / 2, t / 2), centre + shift * u
+    new_c = centre + shift * u
     new = rect(new_c, width / 2, t / 2)
-    filled = solid.union(old)
+    filled = solid.union(rect(centre, width / 2, t / 2))
     if new.difference(filled).area > 1e-6:
-        return None  # the wall does not continue that far
-    near = rect(new_c, width / 2 + 0.3, t / 2 + 0.5).intersection(filled)
-    if near.difference(rect(new_c, width / 2 + 0.3, t / 2 + 1e-6)).area > 1e-6:
-        return None  # another wall meets this one there
-    if (
-        len(scene.clutter)
-        and MultiLineString(list(scene.clutter)).distance(rect(new_c, width / 2, t / 2 + 1.0)) < 0.3
-    ):
-        return None  # furniture in front of the real opening
+        return None  # the wall does not run that far
+    near = rect(new_c, width / 2 + 0.15, t / 2 + 0.5).intersection(filled)
+    if near.difference(rect(new_c, width / 2 + 0.15, t / 2 + 1e-6)).area > 1e-6:
+        return None  # another wall meets this one there: no room for the jambs
     faces = _faces(fp, solid=filled.difference(new))
+    world = np.concatenate([faces, scene.clutter])
+    # Only walks that come near the old or the new opening can be affected.
+    zone = rect(centre + shift / 2 * u, abs(shift) / 2 + width / 2 + 1.0, t / 2 + 1.0)
     walks = {}
     for name, wp in scene.trajectories.items():
-        rel = wp - centre
-        on = (np.abs(rel @ u) < 1e-6) & (np.abs(rel @ n) < 1.6)
-        walks[name] = wp + np.outer(on, shift * u)
-        if clearance(walks[name], np.concatenate([faces, scene.clutter])) < CLEAR:
+        walks[name] = _detour(wp, centre, u, n, shift)
+        if zone.distance(LineString(walks[name])) < 1e-9 and clearance(walks[name], world) < CLEAR:
             return None
     return faces, walks
+
+
+def _detour(wp, centre, u, n, shift) -> np.ndarray:
+    """A walk that crossed the door at ``centre`` crossing ``shift`` further along the wall.
+
+    A crossing is two consecutive waypoints on the door's normal line on both sides of the
+    wall; the walk now steps sideways in front of the wall, crosses, and steps back.
+    """
+    rel = wp - centre
+    on = (np.abs(rel @ u) < 1e-6) & (np.abs(rel @ n) < 1.6)
+    side = np.sign(rel @ n)
+    out = [wp[0]]
+    for i in range(1, len(wp)):
+        if on[i - 1] and on[i] and side[i - 1] != side[i]:
+            out += [wp[i - 1] + shift * u, wp[i] + shift * u]
+        out.append(wp[i])
+    return np.asarray(out)
 
 
 def _thickness_at(fp, p, u):

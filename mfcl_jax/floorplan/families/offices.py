@@ -108,7 +108,7 @@ def offices(rng, name: str):
     axis = (first[1] + first[2]) / 2
     wk = Walk(built, "C1", (length * draw(rng, 0.3, 0.7), axis))
     target = draw(rng, 38, 60)
-    walks["A"] = wk.wander(rng, hall + offices_, target, visit=0.7).waypoints(target)
+    walks["A"] = wk.wander(rng, hall + offices_, target, visit=0.7, reach=8.0).waypoints(target)
     # B: the whole corridor from the west end (or the lobby) and on.
     if "L" in rooms:
         wk = Walk(built, "L", random_point(built.fp.room("L").polygon, rng))
@@ -122,5 +122,5 @@ def offices(rng, name: str):
     start = str(rng.choice(offices_))
     wk = Walk(built, start, random_point(built.fp.room(start).polygon, rng, 0.8))
     target = draw(rng, 50, 78)
-    walks["C"] = wk.wander(rng, rooms, target, visit=0.8, inset=0.8).waypoints(target)
+    walks["C"] = wk.wander(rng, rooms, target, visit=0.8, inset=0.8, reach=6.0).waypoints(target)
     return finish(built, walks, rng, "offices: " + "; ".join(notes))

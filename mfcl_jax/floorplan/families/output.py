@@ -40,7 +40,7 @@ def plot_family(scene, out_png) -> Path:
     fig, ax = plt.subplots(figsize=(width, width * (y1 - y0 + 2.0) / (x1 - x0 + 2.0) + 2.4))
     draw_scene(ax, scene, title="\n".join(textwrap.wrap(f"{scene.name}: {scene.description}", 100)))
     ax.title.set_fontsize(10)
-    if scene.as_built is not None:
+    if scene.as_built is not None:  # dashed over the plan's walls where they differ
         ax.add_collection(
             LineCollection(
                 scene.as_built,
@@ -51,9 +51,8 @@ def plot_family(scene, out_png) -> Path:
                 label="real walls (as built)",
             )
         )
-        ax.legend(
-            loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize=8, frameon=False
-        )
+    # Beside the plan, not below it: long thin buildings leave no room below.
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=".png")

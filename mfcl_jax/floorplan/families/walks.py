@@ -170,13 +170,31 @@ class Walk:
                 return self.to(p)
         return self
 
+    def tour(self, inset: float = 1.0) -> Walk:
+        """Goes once round the current room, ``inset`` from its walls (a visit if too small)."""
+        ring = self.built.fp.room(self.room).polygon.buffer(-inset, join_style="mitre")
+        if ring.is_empty or ring.geom_type != "Polygon" or ring.area < 1.0:
+            return self
+        xy = np.asarray(ring.exterior.coords)[:-1]
+        k = int(np.argmin(np.linalg.norm(xy - self.here, axis=1)))
+        for p in np.roll(xy, -k, axis=0):
+            self.to(p)
+        return self.to(xy[k])
+
     def wander(
-        self, rng: np.random.Generator, rooms, length: float, visit: float = 0.5, inset=1.0
+        self,
+        rng: np.random.Generator,
+        rooms,
+        length: float,
+        visit: float = 0.5,
+        inset=1.0,
+        reach: float | None = None,
     ) -> Walk:
         """Strolls through doors among ``rooms`` until the walk is ``length`` long.
 
-        In each room it may first visit a random point (probability ``visit``); it prefers not
-        to go straight back through the room it came from.
+        In each room it may first visit a random point (probability ``visit``); in a dead end it
+        goes round the room before turning back. It prefers not to go straight back to the
+        room it came from and, given ``reach`` (m), doors nearer than about ``reach``.
         """
         rooms = set(rooms)
         for _ in range(400):
@@ -191,10 +209,18 @@ class Walk:
                 raise ValueError(f"{self.built.fp.name}: room {self.room!r} has no way on")
             onward = [i for i in exits if self._came_from not in self.built.doors[i].rooms]
             if not onward:  # a dead end: look round it before turning back
-                self.visit(rng, inset).visit(rng, inset)
+                self.tour(inset)
             elif rng.random() < visit:
                 self.visit(rng, inset)
-            self.door(int(rng.choice(onward or exits)))
+            pick = np.asarray(onward or exits)
+            if reach is None:
+                self.door(int(rng.choice(pick)))
+            else:
+                far = np.array(
+                    [np.linalg.norm(self.built.doors[i].centre - self.here) for i in pick]
+                )
+                w = np.exp(-far / reach)
+                self.door(int(rng.choice(pick, p=w / w.sum())))
         return self
 
     def waypoints(self, max_length: float | None = None) -> np.ndarray:

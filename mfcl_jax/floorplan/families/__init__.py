@@ -20,14 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from mfcl_jax.floorplan.families.asbuilt import AS_BUILT_KINDS, with_as_built
 from mfcl_jax.floorplan.families.common import family_rng
 from mfcl_jax.floorplan.families.corridors import bays, corridor
-from mfcl_jax.floorplan.families.faults import (
-    AS_BUILT_KINDS,
-    with_as_built,
-    with_clutter,
-    with_scale_error,
-)
+from mfcl_jax.floorplan.families.faults import with_clutter, with_scale_error
 from mfcl_jax.floorplan.families.halls import hall
 from mfcl_jax.floorplan.families.mirror import mirror
 from mfcl_jax.floorplan.families.offices import offices

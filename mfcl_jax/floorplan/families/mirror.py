@@ -9,8 +9,9 @@ the lobby is symmetric about a horizontal line, not symmetric under a half turn.
 from __future__ import annotations
 
 from mfcl_jax.floorplan.families.assemble import finish
-from mfcl_jax.floorplan.families.common import JAMB, Plan, View, draw
+from mfcl_jax.floorplan.families.common import JAMB, Plan, draw
 from mfcl_jax.floorplan.families.rooms import connect, random_point, subdivide
+from mfcl_jax.floorplan.families.views import View
 from mfcl_jax.floorplan.families.walks import Walk
 
 __all__ = ["mirror"]

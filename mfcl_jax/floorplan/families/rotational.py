@@ -18,8 +18,9 @@ import numpy as np
 from shapely.geometry import box
 
 from mfcl_jax.floorplan.families.assemble import finish
-from mfcl_jax.floorplan.families.common import JAMB, Plan, View, draw
+from mfcl_jax.floorplan.families.common import JAMB, Plan, draw
 from mfcl_jax.floorplan.families.rooms import random_point
+from mfcl_jax.floorplan.families.views import View
 from mfcl_jax.floorplan.families.walks import Walk
 
 __all__ = ["rotational"]

@@ -7,6 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import LineString, MultiLineString
 
@@ -132,6 +134,15 @@ def test_walks_stay_in_free_space(scenes, family):
                     off = p - c
                     ok |= abs(off @ n) <= half and abs(off[0] * n[1] - off[1] * n[0]) <= 0.25
                 assert ok, (sc.name, name, p)
+
+
+@settings(max_examples=10, deadline=None)
+@given(family=st.sampled_from(FAMILIES), seed=st.integers(0, 10**6))
+def test_any_seed_builds_with_walks_in_free_space(family, seed):
+    sc = make_scene(family, seed)
+    assert len(sc.trajectories) >= 3
+    for wp in sc.trajectories.values():
+        assert _min_dist(_driven(wp), sc.segments) >= 0.35
 
 
 def test_deterministic_and_seed_dependent():

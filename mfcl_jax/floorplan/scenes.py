@@ -52,6 +52,9 @@ class Scene:
         clutter_height: ``(K,)`` height (m) of each clutter segment above the floor, for the
             3-D LiDAR (``inf``: up to the ceiling); ``None`` gives every segment
             ``DEFAULT_CLUTTER_HEIGHT``. The 2-D simulator ignores it.
+        as_built: ``(F, 2, 2)`` wall-face segments the LiDAR actually sees, where reality
+            deviates from the plan (a missing wall, a moved door, a plan drawn at the wrong
+            scale); ``None`` when the walls are as designed (``floorplan.wall_faces``).
     """
 
     name: str
@@ -60,6 +63,7 @@ class Scene:
     trajectories: dict[str, np.ndarray] = field(default_factory=dict)
     description: str = ""
     clutter_height: np.ndarray | None = None
+    as_built: np.ndarray | None = None
 
     def __post_init__(self):
         clutter = np.asarray(self.clutter, dtype=np.float64).reshape(-1, 2, 2)
@@ -72,6 +76,9 @@ class Scene:
                 f"shape {h.shape} (min {np.min(h, initial=np.inf)})"
             )
         object.__setattr__(self, "clutter_height", h)
+        if self.as_built is not None:
+            faces = np.asarray(self.as_built, dtype=np.float64).reshape(-1, 2, 2)
+            object.__setattr__(self, "as_built", faces)
         trajs = {k: np.asarray(v, dtype=np.float64) for k, v in self.trajectories.items()}
         for k, v in trajs.items():
             if v.ndim != 2 or v.shape[1] != 2 or len(v) < 2:
@@ -83,8 +90,9 @@ class Scene:
 
     @property
     def segments(self) -> np.ndarray:
-        """Everything the LiDAR can hit: wall faces then clutter, ``(F + K, 2, 2)``."""
-        return np.concatenate([self.floorplan.wall_faces, self.clutter], axis=0)
+        """Everything the LiDAR can hit: real wall faces then clutter, ``(F + K, 2, 2)``."""
+        walls = self.floorplan.wall_faces if self.as_built is None else self.as_built
+        return np.concatenate([walls, self.clutter], axis=0)
 
 
 def rect_segments(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:

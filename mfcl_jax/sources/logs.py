@@ -35,10 +35,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import jax
 import numpy as np
 
-from mfcl_jax import se2
-from mfcl_jax.sources.bagtruth import bag_ground_truth, truth_at_scans
+from mfcl_jax.sim.trajectory import odometry, travelled
+from mfcl_jax.sources.bagtruth import bag_ground_truth, carry, truth_at_scans
 from mfcl_jax.sources.heldout import default_cache_dir, file_digest, held_out_map
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import ScanSequence
@@ -60,6 +61,8 @@ DATA = (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve(
 EXCLUDE_MARGIN_M = 2.0
 UNTIMED_PERIOD_S = 1.0
 BAG_AGREE = 0.95  # a bag <-> log match is trusted when this fraction of points coincide
+_BUCKET = 256  # odometry rows; one compiled shape per bucket, whatever the window's length
+_odometry = jax.jit(odometry)
 
 
 @dataclass(frozen=True)
@@ -213,6 +216,19 @@ def full_map(name: str, map_res: float = 0.10, cache_dir=None):
     )
 
 
+def _drifting_odometry(true, key, drift_xy, drift_yaw_deg) -> np.ndarray:
+    """``sim.trajectory.odometry`` from the first true pose (so it starts at the identity).
+
+    The poses are padded with copies of the last one (zero increments, no drift) to a bucket
+    of rows, so windows of any length share one compiled shape; drifts are traced."""
+    n = len(true)
+    cap = _BUCKET * max(1, -(-n // _BUCKET))
+    y = np.concatenate([true, np.repeat(true[-1:], cap - n, 0)]).astype(np.float32)
+    noise = jax.random.normal(key, (cap, 3))
+    x = _odometry(y, y[0], noise, np.float32(drift_xy), np.float32(np.deg2rad(drift_yaw_deg)))
+    return np.asarray(x, np.float64)[:n]
+
+
 def _meta(family, seed, w, length_m, map_res, hm, truth_xy, **extra) -> dict:
     return {
         "family": family,
@@ -261,10 +277,6 @@ def log_recordings(
     Raises:
         ValueError: unknown log, bad arguments, or a log too short for the request.
     """
-    import jax
-
-    from mfcl_jax.sim.trajectory import odometry, travelled
-
     _check(name, map_res, drift_xy, drift_yaw_deg)
     log = read_log(name)
     windows = plan_windows(travelled(log.poses), n_windows, length_m, name)
@@ -274,19 +286,14 @@ def log_recordings(
     for w, hm in zip(windows, _maps(name, log, windows, map_res, cache_dir), strict=True):
         idx = w.scans[ok[w.scans]]
         true = log.poses[idx]
-        noise = jax.random.normal(
-            jax.random.fold_in(jax.random.PRNGKey(seed), w.number), true.shape
-        )
-        y = true.astype(np.float32)
-        odo = odometry(y, y[0], noise, drift_xy, float(np.deg2rad(drift_yaw_deg)))
+        key = jax.random.fold_in(jax.random.PRNGKey(seed), w.number)
+        odo = _drifting_odometry(true, key, drift_xy, drift_yaw_deg)
         where = f"{src} w{w.number:02d}"
         recs.append(
             Recording(
                 name=f"log-{name}/w{w.number:02d}",
                 floorplan=hm.floorplan,
-                seq=ScanSequence(
-                    log.times[idx], [log.scans[i] for i in idx], np.asarray(odo, np.float64), where
-                ),
+                seq=ScanSequence(log.times[idx], [log.scans[i] for i in idx], odo, where),
                 truth=GroundTruth(log.times[idx], true, where),
                 meta=_meta(
                     "log:" + name,
@@ -319,7 +326,6 @@ def bag_recordings(
         odometry).
     """
     from mfcl_jax.io import read_bag
-    from mfcl_jax.sim.trajectory import travelled
 
     _check("intel", map_res)
     log = read_log("intel")
@@ -337,7 +343,12 @@ def bag_recordings(
         t_lo, t_hi = log.times[idx[0]] + off, log.times[idx[-1]] + off
         sel = np.flatnonzero((bag.times >= t_lo) & (bag.times <= t_hi))
         true, gap = truth_at_scans(bag, sel, bi, log.poses[li])
-        odo = np.asarray(se2.between(bag.odometry[sel[0]], bag.odometry[sel]), np.float64)
+        # Re-based to start at the identity, like the log windows.
+        odo = carry(
+            np.broadcast_to(bag.odometry[sel[0]], (len(sel), 3)),
+            bag.odometry[sel],
+            np.zeros((len(sel), 3)),
+        )
         where = f"{bag_file.name} w{w.number:02d}"
         recs.append(
             Recording(

@@ -11,14 +11,8 @@ from mfcl_jax import se2
 from mfcl_jax.io import DataError, read_carmen
 from mfcl_jax.io.carmen import beam_angles
 from mfcl_jax.sources.heldout import recorded_scans
-from mfcl_jax.sources.logs import (
-    DATA,
-    LOGS,
-    bag_recordings,
-    log_recordings,
-    plan_windows,
-    read_log,
-)
+from mfcl_jax.sources.logs import DATA, LOGS, bag_recordings, log_recordings, read_log
+from mfcl_jax.sources.logwindows import plan_windows
 
 needs_data = pytest.mark.skipif(
     not (DATA / "laser").is_dir(),
@@ -60,6 +54,24 @@ def test_log_without_clock(tmp_path):
         read_carmen(f)
     log = read_carmen(f, untimed_period=0.5)
     assert not log.timed and np.allclose(log.times, [0.0, 0.5, 1.0])
+
+
+def test_bag_truth_blends_matched_poses():
+    from types import SimpleNamespace
+
+    from mfcl_jax.sources.bagtruth import truth_at_scans
+
+    t = np.arange(50, dtype=np.float64)
+    odo = np.stack([0.3 * t, np.sin(0.2 * t), 0.05 * t], -1)
+    # The odometry frame drifts linearly in yaw against the truth: C(t) = (1, -2, 0.004 t).
+    c = np.stack([np.ones(50), -2 * np.ones(50), 0.004 * t], -1)
+    true = np.asarray(se2.compose(c, odo), np.float64)
+    bag = SimpleNamespace(times=t, odometry=odo)
+    anchors = np.arange(0, 50, 7)
+    got, gap = truth_at_scans(bag, np.arange(50), anchors, true[anchors])
+    assert np.allclose(got[anchors], true[anchors], atol=1e-4)
+    assert np.abs(got - true).max() < 0.02  # between matches: far below the drift (0.03 rad)
+    assert gap.max() == 3.0 and np.all(gap[anchors] == 0)
 
 
 # ----------------------------------------------------------------------------- windows

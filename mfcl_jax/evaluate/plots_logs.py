@@ -45,6 +45,12 @@ def draw_log_recording(ax, rec, max_scans: int = 120) -> None:
     ax.plot(xy[:, 0], xy[:, 1], "-", color="k", lw=1.2, zorder=5, label="true path")
     ax.plot(*xy[0], "^", color="k", ms=6, zorder=6, label="start")
     ax.plot([], [], ".", color="tab:orange", label="window scans (not in map)")
+    # The path may leave the map (places only the window saw): show all of it.
+    x0, y0, x1, y1 = fp.bounds
+    lo = np.minimum([x0, y0], xy.min(0) - 1.0)
+    hi = np.maximum([x1, y1], xy.max(0) + 1.0)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
     m = rec.meta
     ax.set_title(
         f"{rec.name}: {m.get('travel_m', float('nan')):.0f} m, {len(rec.seq)} scans, "

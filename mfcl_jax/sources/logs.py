@@ -4,15 +4,16 @@ Four corrected CARMEN logs (``LOGS``; ``shared/data/laser/<name>-corrected.log.g
 180 deg front-laser scans with SLAM-corrected poses) and the raw Intel ROS bag (real scans,
 real drifting ``/odom``).
 
-A window is a stretch of ``length_m`` metres of travel along the corrected poses: it starts at a
-scan and ends at the first scan at least ``length_m`` further on. ``n_windows`` windows are
-spread evenly over the log and never share a scan; a request the log cannot hold is a
-``ValueError`` that names the log, its length and the request, raised before any map is built.
+A window is a stretch of ``length_m`` metres of travel along the corrected poses
+(``logwindows.plan_windows``): ``n_windows`` windows are spread evenly over the log and never
+share a scan; a request the log cannot hold is a ``ValueError`` that names the log, its length
+and the request, raised before any map is built.
 
 Each window gets its own floor plan: an occupancy map of the same log built from every scan
-EXCEPT the window's and those within ``EXCLUDE_MARGIN_M`` of travel before or after it (the
-neighbours of the window's end scans see nearly the same view; a prior map is made at another
-time). Places the robot saw on other passes stay in the map, as they would in a real prior map.
+EXCEPT the window's and those within ``logwindows.EXCLUDE_MARGIN_M`` (2 m) of travel before or
+after it (the neighbours of the window's end scans see nearly the same view; a prior map is made
+at another time). Places the robot saw on other passes stay in the map, as they would in a real
+prior map.
 The map is written as a ROS map and read back by ``load_rosmap`` (its room segmentation gives
 the rooms and doors); see ``sources.heldout`` for the cache. A place that only the window saw
 is missing from its map: ``meta["map_coverage"]`` is the fraction of the window's true positions
@@ -32,7 +33,6 @@ at the identity; ground truth from the matched corrected poses.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import jax
@@ -41,16 +41,14 @@ import numpy as np
 from mfcl_jax.sim.trajectory import odometry, travelled
 from mfcl_jax.sources.bagtruth import bag_ground_truth, carry, truth_at_scans
 from mfcl_jax.sources.heldout import default_cache_dir, file_digest, held_out_map
+from mfcl_jax.sources.logwindows import plan_windows
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import ScanSequence
 
 __all__ = [
     "LOGS",
-    "EXCLUDE_MARGIN_M",
-    "LogWindow",
     "log_path",
     "read_log",
-    "plan_windows",
     "log_recordings",
     "bag_recordings",
     "full_map",
@@ -58,37 +56,10 @@ __all__ = [
 
 LOGS: tuple[str, ...] = ("intel", "freiburg-101", "orebro", "seattle")
 DATA = (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve()
-EXCLUDE_MARGIN_M = 2.0
 UNTIMED_PERIOD_S = 1.0
 BAG_AGREE = 0.95  # a bag <-> log match is trusted when this fraction of points coincide
 _BUCKET = 256  # odometry rows; one compiled shape per bucket, whatever the window's length
 _odometry = jax.jit(odometry)
-
-
-@dataclass(frozen=True)
-class LogWindow:
-    """One window of a log, as ranges of its scan (FLASER line) indices.
-
-    Attributes:
-        number: position among the log's windows (0, 1, ...).
-        first, last: the window's first and last scan (inclusive).
-        held_out: ``(first, last)`` inclusive range of scans left out of its map (the window
-            plus the margin).
-        start_m: travel (m) from the log's start to the window's first scan.
-        travel_m: travel (m) from the window's first to its last scan.
-    """
-
-    number: int
-    first: int
-    last: int
-    held_out: tuple[int, int]
-    start_m: float
-    travel_m: float
-
-    @property
-    def scans(self) -> np.ndarray:
-        """``(n,)`` the window's scan indices."""
-        return np.arange(self.first, self.last + 1)
 
 
 def log_path(name: str) -> Path:
@@ -103,67 +74,6 @@ def read_log(name: str):
     from mfcl_jax.io import read_carmen
 
     return read_carmen(log_path(name), untimed_period=UNTIMED_PERIOD_S)
-
-
-def plan_windows(
-    travel, n_windows: int, length_m: float, where: str, margin_m: float = EXCLUDE_MARGIN_M
-) -> list[LogWindow]:
-    """Chooses ``n_windows`` disjoint windows of ``length_m`` metres, spread over a log.
-
-    Nominal starts are spaced evenly from the log's start to the last start that leaves
-    ``length_m`` of travel; each window begins at the first scan at or after its nominal start
-    and after the previous window's last scan. Should that run out of log, the windows are
-    packed from the start instead.
-
-    Args:
-        travel: ``(N,)`` non-decreasing travel (m) at each scan.
-        n_windows: how many windows (>= 1).
-        length_m: travel per window (m, > 0).
-        where: the log's name (for messages).
-        margin_m: travel (m) before and after a window also left out of its map.
-
-    Returns:
-        ``n_windows`` ``LogWindow``s in log order.
-
-    Raises:
-        ValueError: bad arguments, or a log that cannot hold the request.
-    """
-    s = np.asarray(travel, np.float64)
-    if isinstance(n_windows, bool) or not isinstance(n_windows, int | np.integer) or n_windows < 1:
-        raise ValueError(f"log {where!r}: n_windows must be an integer >= 1, got {n_windows!r}")
-    if not length_m > 0:
-        raise ValueError(f"log {where!r}: length_m must be > 0, got {length_m!r}")
-
-    def end_of(i0: int) -> int | None:
-        i1 = int(np.searchsorted(s, s[i0] + length_m - 1e-9, "left"))
-        return i1 if i1 < len(s) else None
-
-    packed, i0 = [], 0
-    while i0 < len(s) and (i1 := end_of(i0)) is not None:
-        packed.append((i0, i1))
-        i0 = i1 + 1
-    if len(packed) < n_windows:
-        raise ValueError(
-            f"log {where!r} is too short: {s[-1]:.1f} m of travel over {len(s)} scans holds "
-            f"{len(packed)} disjoint window(s) of {length_m:g} m; requested {n_windows}"
-        )
-    last_start = s[int(np.searchsorted(s, s[-1] - length_m + 1e-9, "right")) - 1]
-    spread, prev = [], -1
-    for k in range(n_windows):
-        a = last_start * k / (n_windows - 1) if n_windows > 1 else 0.0
-        i0 = max(int(np.searchsorted(s, a - 1e-9, "left")), prev + 1)
-        i1 = end_of(i0) if i0 < len(s) else None
-        if i1 is None:
-            spread = packed[:n_windows]
-            break
-        spread.append((i0, i1))
-        prev = i1
-    out = []
-    for k, (i0, i1) in enumerate(spread):
-        h0 = int(np.searchsorted(s, s[i0] - margin_m, "left"))
-        h1 = int(np.searchsorted(s, s[i1] + margin_m, "right")) - 1
-        out.append(LogWindow(k, i0, i1, (h0, h1), float(s[i0]), float(s[i1] - s[i0])))
-    return out
 
 
 def _cache(cache_dir) -> Path:

@@ -15,7 +15,7 @@ from scipy import ndimage
 from mfcl_jax.floorplan.roomseg import segment_rooms
 from mfcl_jax.floorplan.rosmap import load_rosmap, read_rosmap_grid
 from mfcl_jax.floorplan.skeleton import thin
-from mfcl_jax.pipeline.occmap import write_rosmap
+from mfcl_jax.sources.occmap import write_rosmap
 
 RES = 0.1
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

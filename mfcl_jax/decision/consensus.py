@@ -10,10 +10,11 @@
   tolerances are tested separately, never mixed into one norm.
 * ``B_m`` counts INDEPENDENT evidence: the largest number of the group's champions whose
   windows share no scan (windows are intervals of keyframes; the greedy earliest-ending choice
-  is optimal for intervals, and windows end in index order). With ``d_s = 6`` m and a 2 m
-  step, windows ``k`` and ``k + 3`` are disjoint, so three overlapping windows that saw one
-  10 m stretch count once, not three times: the champions counted are computed from disjoint
-  scan sets, which is the independence Proposition 1 assumes. The raw member count is kept as
+  is optimal for intervals, and windows end in index order). With ``d_s = 6`` m, a 2 m step
+  and 0.25 m keyframes, window ``k + 3`` starts on window ``k``'s last scan and ``k + 4`` is
+  the first disjoint one, so the overlapping windows that saw one 10-12 m stretch count
+  once: the champions counted are computed from disjoint scan sets, which is the
+  independence Proposition 1 assumes. The raw member count is kept as
   ``size``. The winner has the largest ``B_m``, ties to the larger raw group, then to the group
   with the higher-scored leader; ``margin = B1 - B2``.
 * Two means of the winner (arithmetic xy, circular yaw), because odometry drifts and an anchor

@@ -3,9 +3,19 @@
 The ``x y theta`` of a FLASER line is the laser pose of the log (SLAM-corrected in the
 ``*-corrected`` logs). Beams span a 180 deg field of view, centred on the sensor's x axis:
 an odd count ``n`` places the first and last beams at -90 and +90 deg (step ``180/(n-1)``),
-an even count steps ``180/n`` from -90 deg (the classic 180-beam, 1 deg scanner).
-Readings at or beyond ``max_range`` (no return; CARMEN writes 81.91 or similar) or <= 0 are
-dropped. Plain or gzip-compressed files.
+an even count steps ``180/n`` from -90 deg (the classic 180-beam, 1 deg scanner). Both
+conventions give the sharpest maps of the four corrected logs in ``shared/data/laser`` (Intel 180
+beams, Freiburg 101 360, Orebro 181, Seattle 361): shifting the beams by 0.1 deg or scaling the
+step by 0.5 % blurs every map.
+
+Dropped readings: <= 0, at or beyond ``max_range``, and the SICK status codes that stand for
+"no return" (the top 9 values of the scanner's range word: 81.83..81.91 m in centimetre mode,
+32.759..32.767 m in millimetre mode, as the Orebro log writes them; a real echo never lands
+there).
+
+Timestamps: some logs have no clock (the Orebro log writes 0 on every line). Such a log is an
+error unless ``untimed_period`` is given, which numbers its lines ``0, period, 2 period, ...``
+(``CarmenLog.timed`` is then False). Plain or gzip-compressed files.
 """
 
 from __future__ import annotations
@@ -19,7 +29,10 @@ import numpy as np
 
 from mfcl_jax.io.errors import DataError
 
-__all__ = ["CarmenLog", "read_carmen", "beam_angles"]
+__all__ = ["CarmenLog", "read_carmen", "beam_angles", "NO_RETURN_CODES"]
+
+# ``(lo, hi)`` (m) bands of SICK "no return" status codes (see module doc).
+NO_RETURN_CODES = ((81.83, 81.91), (32.759, 32.767))
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +46,7 @@ class CarmenLog:
         odometry: ``(N, 3)`` the FLASER odometry poses (equal to ``poses`` in corrected logs).
         time_reversals: how many FLASER timestamps are earlier than the one before (real
             logs have a few; the lines stay in file order).
+        timed: False when the log has no clock and ``times`` number the lines.
     """
 
     times: np.ndarray
@@ -40,6 +54,7 @@ class CarmenLog:
     poses: np.ndarray
     odometry: np.ndarray
     time_reversals: int = 0
+    timed: bool = True
 
     def __len__(self) -> int:
         return len(self.times)
@@ -51,8 +66,19 @@ def beam_angles(n: int, fov: float = math.pi) -> np.ndarray:
     return -fov / 2 + step * np.arange(n)
 
 
+def _no_return(r: np.ndarray) -> np.ndarray:
+    out = np.zeros(r.shape, bool)
+    for lo, hi in NO_RETURN_CODES:
+        out |= (r >= lo - 5e-4) & (r <= hi + 5e-4)
+    return out
+
+
 def read_carmen(
-    path, max_range: float = 50.0, fov: float = math.pi, strict_time: bool = False
+    path,
+    max_range: float = 50.0,
+    fov: float = math.pi,
+    strict_time: bool = False,
+    untimed_period: float | None = None,
 ) -> CarmenLog:
     """Reads the FLASER lines of a CARMEN log (``.log`` or ``.log.gz``).
 
@@ -62,11 +88,13 @@ def read_carmen(
         fov: field of view (rad) of the beams.
         strict_time: raise on a timestamp earlier than the previous one; otherwise such
             lines are kept in file order and counted in ``time_reversals``.
+        untimed_period: for a log whose FLASER timestamps are all equal (no clock): the time
+            step (s) that numbers its lines; ignored for a log with a clock.
 
     Raises:
         DataError: missing file, a FLASER line with too few fields or non-numbers, times that
-            go backwards (``strict_time``), or a log without FLASER lines (each names the file
-            and line).
+            go backwards (``strict_time``), a log without a clock and no ``untimed_period``,
+            or a log without FLASER lines (each names the file and line).
     """
     path = Path(path)
     if not path.is_file():
@@ -103,7 +131,7 @@ def read_carmen(
                     angles[n] = (np.cos(a), np.sin(a))
                 c, s = angles[n]
                 r = vals[:n]
-                ok = np.isfinite(r) & (r > 0) & (r < max_range)
+                ok = np.isfinite(r) & (r > 0) & (r < max_range) & ~_no_return(r)
                 scans.append(np.stack([r[ok] * c[ok], r[ok] * s[ok]], -1))
                 poses.append(vals[n : n + 3])
                 odom.append(vals[n + 3 : n + 6])
@@ -112,10 +140,20 @@ def read_carmen(
         raise DataError(f"{path}: cannot read ({e})") from None
     if not times:
         raise DataError(f"{path}: no FLASER lines")
+    t = np.asarray(times)
+    timed = len(t) == 1 or bool(np.ptp(t) > 0)
+    if not timed:
+        if untimed_period is None or not untimed_period > 0:
+            raise DataError(
+                f"{path}: all {len(t)} FLASER timestamps equal {t[0]} (a log without a clock); "
+                f"pass untimed_period > 0 to number its lines (got {untimed_period!r})"
+            )
+        t = untimed_period * np.arange(len(t), dtype=np.float64)
     return CarmenLog(
-        np.asarray(times),
+        t,
         scans,
         np.asarray(poses).reshape(-1, 3),
         np.asarray(odom).reshape(-1, 3),
         reversals,
+        timed,
     )

@@ -5,13 +5,14 @@ Cases (all with the same, untuned ``LocalizeParams``; d_s = 6 m):
 
 * IFC buildings (Office_A, Duplex, Level 1): simulated walks along room sequences
   (waypoints through door midpoints, see ``route``); LiDAR sees the IFC walls only.
-* Intel lab, CARMEN corrected log: real scans (180 deg, 1 deg), the corrected poses as ground
-  truth, odometry derived from them with seeded wheel-odometry-like drift (1 %, 0.5 deg/m);
-  floor plan: an occupancy map built from the same log's scans OUTSIDE the stretch being
-  localized (held out), written as a ROS map and segmented into rooms by ``load_rosmap``.
-* Intel lab, raw ROS bag: every real scan with the bag's real, drifting odometry; ground truth
-  from the corrected log, whose scans are the bag's scans at a constant time offset (checked
-  scan by scan, see ``bag_ground_truth``).
+* Intel lab, CARMEN corrected log: 80 m windows from ``sources.logs.log_recordings``: real
+  scans (180 deg, 1 deg), the corrected poses as ground truth, odometry derived from them with
+  seeded wheel-odometry-like drift (1 %, 0.5 deg/m); floor plan: an occupancy map built from
+  the same log's scans OUTSIDE the window (held out), written as a ROS map and segmented into
+  rooms by ``load_rosmap``.
+* Intel lab, raw ROS bag: ``sources.logs.bag_recordings``: every real scan with the bag's
+  real, drifting odometry; ground truth from the corrected log, whose scans are the bag's scans
+  at a constant time offset (checked scan by scan, see ``sources.bagtruth``).
 """
 
 from __future__ import annotations
@@ -28,11 +29,11 @@ import pandas as pd
 
 from mfcl_jax import se2
 from mfcl_jax.localizer import LocalizeParams, Localizer
-from mfcl_jax.score import pose_at, score_decisions, summarize
-from mfcl_jax.sources.sequence import ScanSequence, from_bag
+from mfcl_jax.score import score_decisions, summarize
+from mfcl_jax.sources.sequence import ScanSequence
 from mfcl_jax.sources.walks import route
 
-__all__ = ["run_all", "bag_ground_truth", "main"]
+__all__ = ["run_all", "main"]
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel log
@@ -236,161 +237,53 @@ def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict
     return rows
 
 
-def _intel_map(log, exclude: np.ndarray, out: Path, name: str):
-    from mfcl_jax.floorplan.rosmap import load_rosmap
-    from mfcl_jax.pipeline.occmap import occupancy_grid, write_rosmap
-
-    keep = np.flatnonzero(~exclude)
-    occ, free, org = occupancy_grid(log.poses[keep], [log.scans[i] for i in keep])
-    path = write_rosmap(out / "intel_map" / f"{name}.yaml", occ, free, 0.10, org)
-    return load_rosmap(path)
-
-
-def _stretches(poses, starts, length):
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
-    return [(a, np.flatnonzero((s >= a) & (s < a + length))) for a in starts]
+def _recording_case(group: str, rec, note: str) -> Case:
+    m = rec.meta
+    name = f"{m['trajectory']}_{m['start_m']:.0f}-{m['start_m'] + m['travel_m']:.0f}m"
+    return Case(group, name, note, rec.seq, rec.truth.times, rec.truth.poses)
 
 
 def _intel_cases(
-    params: LocalizeParams, out: Path, starts=(0.0, 170.0, 340.0), length: float = 80.0
+    params: LocalizeParams, out: Path, n_windows: int = 3, length: float = 80.0
 ) -> list[dict]:
-    import jax
-
-    from mfcl_jax.io import read_carmen
-    from mfcl_jax.sim.trajectory import odometry
-
-    log = read_carmen(DATA / "laser" / "intel-corrected.log.gz")
-    order_ok = np.concatenate([[True], np.diff(log.times) > 0])
-    _log(f"Intel log: {len(log)} scans, {log.time_reversals} time reversals")
-    # The full map (for the picture and the README); localization uses held-out maps.
-    full = _intel_map(log, np.zeros(len(log), bool), out, "intel_full")
     from mfcl_jax.evaluate.plots_floorplan import show_floorplan
+    from mfcl_jax.sources.logs import full_map, log_recordings
 
-    show_floorplan(full, out / "intel_map" / "intel_full.png")
+    # The full map (for the picture and the README); localization uses held-out maps.
+    full = full_map("intel")
+    show_floorplan(full.floorplan, out / "intel_map" / "intel_full.png")
+    note = (
+        f"corrected-log scans, derived odometry ({DRIFT_XY:.0%}, {DRIFT_YAW_DEG} deg/m), "
+        "held-out map"
+    )
     rows = []
-    for a, idx in _stretches(log.poses, starts, length):
-        idx = idx[order_ok[idx]]
-        name = f"log_{int(a)}-{int(a + length)}m"
-        excl = np.zeros(len(log), bool)
-        excl[idx] = True
-        fp = _intel_map(log, excl, out, f"intel_without_{int(a)}-{int(a + length)}m")
-        true = log.poses[idx]
-        key = jax.random.fold_in(jax.random.PRNGKey(0), int(a))
-        noise = jax.random.normal(key, true.shape)
-        odo = np.asarray(
-            odometry(true, true[0], noise, DRIFT_XY, np.deg2rad(DRIFT_YAW_DEG)), np.float64
-        )
-        seq = ScanSequence(log.times[idx], [log.scans[i] for i in idx], odo, name)
-        case = Case(
-            "Intel_log",
-            name,
-            f"corrected-log scans, derived odometry ({DRIFT_XY:.0%}, "
-            f"{DRIFT_YAW_DEG} deg/m), held-out map",
-            seq,
-            log.times[idx],
-            true,
-        )
-        rows.append(_run(Localizer(fp, params), case, fp, out))
+    for rec in log_recordings(
+        "intel", n_windows, length, drift_xy=DRIFT_XY, drift_yaw_deg=DRIFT_YAW_DEG
+    ):
+        note_w = f"{note} (path on free cells {rec.meta['map_coverage']:.0%})"
+        case = _recording_case("Intel_log", rec, note_w)
+        rows.append(_run(Localizer(rec.floorplan, params), case, rec.floorplan, out))
     return rows
 
 
-def bag_ground_truth(bag, log, tol: float = 0.02):
-    """Matches the corrected log's scans to the bag's scans.
+def _bag_cases(params: LocalizeParams, out: Path, n_windows: int = 2, length: float = 80.0):
+    from mfcl_jax.sources.logs import bag_recordings
 
-    The corrected log's times are the bag's scan stamps minus a constant offset. The offset is
-    the one (among bag stamp minus the first log time, over the first 400 bag scans) that
-    matches the most log times within ``tol``; each match is then checked scan by scan (the
-    log scan's points must coincide with the bag scan's within 1 cm).
-
-    Returns:
-        ``(offset, bag_index (M,), log_index (M,), agree (M,))`` with ``agree`` the fraction
-        of the log scan's points that coincide with the bag scan's.
-    """
-    bt = bag.times
-    best = (-1, 0.0)
-    for j in range(min(400, len(bt))):
-        off = bt[j] - log.times[0]
-        k = np.clip(np.searchsorted(bt, log.times + off), 1, len(bt) - 1)
-        d = np.minimum(abs(bt[k] - log.times - off), abs(bt[k - 1] - log.times - off))
-        n = int(np.sum(d < tol))
-        if n > best[0]:
-            best = (n, off)
-    off = best[1]
-    k = np.clip(np.searchsorted(bt, log.times + off), 1, len(bt) - 1)
-    k = np.where(abs(bt[k - 1] - log.times - off) < abs(bt[k] - log.times - off), k - 1, k)
-    ok = abs(bt[k] - log.times - off) < tol
-    li, bi = np.flatnonzero(ok), k[ok]
-
-    def radii(p):
-        return np.round(np.hypot(p[:, 0], p[:, 1]) * 1000).astype(np.int64)
-
-    agree = np.array(
-        [
-            np.mean(np.isin(radii(log.scans[i]), radii(bag.scans[b])))
-            if len(bag.scans[b]) and len(log.scans[i])
-            else 0.0
-            for b, i in zip(bi, li, strict=True)
-        ]
-    )
-    return off, bi, li, agree
-
-
-def _bag_cases(params: LocalizeParams, out: Path, starts=(0.0, 170.0), length: float = 80.0):
-    from mfcl_jax.io import read_bag, read_carmen
-
-    log = read_carmen(DATA / "laser" / "intel-corrected.log.gz")
     t0 = time.perf_counter()
-    bag = read_bag(DATA / "laser" / "intel.orig.bag", "/scan", "/odom")
-    _log(
-        f"Intel bag: {len(bag)} scans paired with odometry ({bag.unpaired} unpaired) in "
-        f"{time.perf_counter() - t0:.1f} s"
-    )
-    off, bi, li, agree = bag_ground_truth(bag, log)
-    good = agree > 0.95
-    _log(
-        f"  bag <-> corrected log: offset {off:.4f} s, {len(bi)}/{len(log)} log scans matched, "
-        f"{int(good.sum())} with > 95 % identical points (median {np.median(agree):.3f})"
-    )
-    info = dict(
-        offset_s=off,
-        matched=len(bi),
-        log_scans=len(log),
-        identical=int(good.sum()),
-        median_agree=float(np.median(agree)),
-    )
-    bi, li = bi[good], li[good]
-    seq_all = from_bag(bag, "intel.orig.bag")
+    recs = bag_recordings(n_windows, length)
+    _log(f"Intel bag: {len(recs)} windows in {time.perf_counter() - t0:.1f} s")
+    info = {}
     rows = []
-    for a, idx in _stretches(log.poses, starts, length):
-        name = f"bag_{int(a)}-{int(a + length)}m"
-        lidx = np.intersect1d(idx, li)
-        t_lo, t_hi = log.times[lidx[0]] + off, log.times[lidx[-1]] + off
-        sel = np.flatnonzero((seq_all.times >= t_lo) & (seq_all.times <= t_hi))
-        seq = seq_all.subset(sel)
-        # Ground truth at every bag scan: the nearest matched corrected pose, moved by the
-        # bag odometry's relative motion since it (under 1 m: a few cm of drift at most).
-        m_bag = bi[np.isin(li, lidx)]
-        m_log = li[np.isin(li, lidx)]
-        mt = bag.times[m_bag]
-        j = np.clip(np.searchsorted(mt, seq.times), 1, len(mt) - 1)
-        j = np.where(abs(mt[j - 1] - seq.times) < abs(mt[j] - seq.times), j - 1, j)
-        O_m = pose_at(bag.times, bag.odometry, mt[j])
-        rel = np.asarray(se2.between(O_m, seq.odometry), np.float64)
-        gt = np.asarray(se2.compose(log.poses[m_log[j]], rel), np.float64)
-        gap = float(np.max(abs(mt[j] - seq.times)))
-        excl = np.zeros(len(log), bool)
-        excl[idx] = True
-        fp = _intel_map(log, excl, out, f"intel_without_{int(a)}-{int(a + length)}m")
-        case = Case(
-            "Intel_bag",
-            name,
-            f"raw bag scans + real odometry; gt from matched "
-            f"corrected poses (max gap {gap:.1f} s), held-out map",
-            seq,
-            seq.times,
-            gt,
+    for rec in recs:
+        m = rec.meta
+        info = dict(offset_s=m["time_offset_s"], identical=m["truth_matches"])
+        note = (
+            "raw bag scans + real odometry; gt from matched corrected poses "
+            f"(max gap {m['truth_gap_s']:.1f} s), held-out map "
+            f"(path on free cells {m['map_coverage']:.0%})"
         )
-        rows.append(_run(Localizer(fp, params), case, fp, out))
+        case = _recording_case("Intel_bag", rec, note)
+        rows.append(_run(Localizer(rec.floorplan, params), case, rec.floorplan, out))
     return rows, info
 
 
@@ -431,9 +324,8 @@ def _write_tables(rows: list[dict], info: dict, out: Path) -> None:
             "## Intel bag ground truth",
             "",
             f"Corrected-log times + {info['offset_s']:.4f} s = bag scan stamps: "
-            f"{info['matched']}/{info['log_scans']} log scans matched in time, "
-            f"{info['identical']} of them with > 95 % identical points "
-            f"(median {info['median_agree']:.3f}).",
+            f"{info['identical']} log scans matched to a bag scan with > 95 % identical "
+            "points (see `mfcl_jax.sources.bagtruth`).",
             "",
         ]
     atomic_write_text(out / "summary.md", "\n".join(md))
@@ -448,8 +340,8 @@ def run_all(out="results/real", quick: bool = False) -> pd.DataFrame:
     rows: list[dict] = []
     rows += _ifc_cases(DUPLEX, params, out)
     rows += _ifc_cases(OFFICE, params, out)
-    rows += _intel_cases(params, out, starts=(0.0,) if quick else (0.0, 170.0, 340.0))
-    bag_rows, info = _bag_cases(params, out, starts=(0.0,) if quick else (0.0, 170.0))
+    rows += _intel_cases(params, out, n_windows=1 if quick else 3)
+    bag_rows, info = _bag_cases(params, out, n_windows=1 if quick else 2)
     rows += bag_rows
     _write_tables(rows, info, out)
     _log(f"done in {time.perf_counter() - t0:.0f} s: {out / 'summary.md'}")
@@ -461,7 +353,7 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description="real-data results of the localize path")
     ap.add_argument("--out", default="results/real")
-    ap.add_argument("--quick", action="store_true", help="one Intel stretch of each kind")
+    ap.add_argument("--quick", action="store_true", help="one Intel window of each kind")
     a = ap.parse_args(argv)
     df = run_all(a.out, a.quick)
     with pd.option_context("display.width", 200, "display.max_columns", 20):

@@ -260,7 +260,8 @@ def load_dataset_input(args, folder, fp, planar):
     from mfcl_jax.sources.sequence import ScanSequence
 
     opts = dict(free_thresh=args.free_thresh, occupied_thresh=args.occupied_thresh)
-    xyz = planar.dim != 2 and planar.band is not None
+    # z is read whenever the scans have it (to tell 3-D from 2-D), unless told they are 2-D.
+    xyz = planar.dim != 2
     if xyz:
         first = sorted((Path(folder) / "scans").glob("*.pcd"))[:1]
         xyz = planar.dim == 3 or bool(first and "z" in pcd_fields(first[0]))
@@ -292,7 +293,7 @@ def _load_bag(args, planar):
         args.scan_topic,
         args.odom_topic,
         sensor_offset=offset,
-        xyz=planar.dim != 2 and planar.band is not None,
+        xyz=planar.dim != 2,
         base_frame=args.base_frame if args.tf_static else None,
     )
     notes = []

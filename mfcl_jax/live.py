@@ -138,8 +138,7 @@ class Follower:
         """The points of ``path``, or ``None`` while it may still be being written."""
         try:
             if self._xyz is None:
-                want = self._planar.params.dim != 2 and self._planar.params.band is not None
-                self._xyz = want and "z" in pcd_fields(path)
+                self._xyz = self._planar.params.dim != 2 and "z" in pcd_fields(path)
             pts = read_pcd(path, xyz=self._xyz)
         except DataError as e:
             try:

@@ -88,9 +88,8 @@ def localize_batch(
     # or one cache hit, for both), and on a CPU no slower than chunks of 16 (47 vs 49 ms per
     # submap measured).
     fe = FrontEnd(floorplans, params.frontend, chunk=1)
-    progress.note(f"registering {n} windows; the first chunk is slow: {COMPILING}")
-    with progress.bar(n) as bar:
-        cands = fe.register(batch.submaps, batch.building, progress=_updater(bar))
+    with progress.counted(f"registering {n} windows (the first: {COMPILING})", n) as done:
+        cands = fe.register(batch.submaps, batch.building, progress=done)
     with progress.stage(f"deciding {n} windows ({COMPILING})"):
         frame, _ = decide(batch, cands, floorplans, params.decision, ours=("ours",))
     frame = frame[(frame["policy"] == "ours") & (frame["set"] == 0)]
@@ -107,14 +106,3 @@ def localize_batch(
             thin = f" rethinned voxel={w.voxel[k - 1]:.2f}" if W.rethinned(w)[k - 1] else ""
             res.details.append(f"pts={len(w.points[k - 1])}{thin} cands={int(valid[sub])}")
     return out
-
-
-def _updater(bar):
-    """``FrontEnd.register``'s progress callback (submaps done so far) -> bar steps."""
-    done = [0]
-
-    def update(n_done: int) -> None:
-        bar.update(n_done - done[0])
-        done[0] = n_done
-
-    return update

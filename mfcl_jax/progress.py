@@ -104,6 +104,18 @@ class Progress:
                 self.note(f"window {i}{of}")
                 last = time.monotonic()
 
+    @contextmanager
+    def counted(self, text: str, total: int):
+        """A stage that counts its ``total`` steps: yields a callback ``done(n_done)``; a bar
+        on a terminal, else ``stage(text)``."""
+        if not self.animate:
+            with self.stage(text):
+                yield lambda n_done: None
+            return
+        self.note(text)
+        with self.bar(total) as bar:
+            yield lambda n_done: bar.update(n_done - bar.n)
+
     def echo(self, line: str, file=None) -> None:
         """Prints ``line`` (to ``file``, default stdout) without breaking a bar on the way."""
         from tqdm import tqdm

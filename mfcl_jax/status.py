@@ -222,4 +222,4 @@ def summary_table(rows) -> str:
     width = [max(len(c) for c in col) for col in zip(head, *body, strict=True)]
     fmt = "  ".join(f"{{:<{w}}}" for w in width)
     lines = [fmt.format(*head), fmt.format(*("-" * w for w in width))]
-    return "\n".join(lines + [fmt.format(*b) for b in body])
+    return "\n".join(line.rstrip() for line in lines + [fmt.format(*b) for b in body])

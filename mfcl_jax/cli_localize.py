@@ -2,8 +2,8 @@
 
 Thin: argument parsing; the runs (one input, many datasets, ``--follow``) are in
 ``mfcl_jax.cli_runs``, the work in ``mfcl_jax.localizer``, ``localize_batch``, ``live``,
-``score`` and ``sources``. Inputs, the odometry convention and the 3-D flags:
-``mfcl_jax.cli_inputs``; what the status lines mean: ``mfcl_jax.status``.
+``score`` and ``sources``. Inputs, the odometry convention and the 3-D band:
+``mfcl_jax.cli_inputs`` (flags: ``cli_flags``); what the status lines mean: ``mfcl_jax.status``.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mfcl_jax.cli_inputs import add_input_flags
+from mfcl_jax.cli_flags import add_input_flags
 from mfcl_jax.status import help_text
 
 __all__ = ["add_localize_commands", "cmd_localize", "cmd_evaluate", "cmd_simulate"]

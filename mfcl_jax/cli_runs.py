@@ -105,7 +105,7 @@ def localize_one(args, folders, progress: Progress) -> int:
 
 def localize_many(args, folders, progress: Progress) -> int:
     """Several dataset folders in one batch, one decisions file each (``--out-dir``)."""
-    from mfcl_jax.cli_inputs import input_paths, load_dataset_input, planar_params
+    from mfcl_jax.cli_inputs import check_inputs, input_paths, load_dataset_input, planar_params
     from mfcl_jax.io import check_output
     from mfcl_jax.status import status_line, summary_table
 
@@ -114,8 +114,7 @@ def localize_many(args, folders, progress: Progress) -> int:
             f"localize: --out {args.out} names one file but {len(folders)} datasets were given; "
             "use --out-dir D (one <dataset name>.jsonl each)"
         )
-    if args.bag is not None or args.carmen is not None:
-        raise DataError("localize: several inputs are dataset folders only (no --bag/--carmen)")
+    check_inputs(args, folders)
     names: dict[str, Path] = {}
     for f in folders:
         if f.name in names:
@@ -212,7 +211,8 @@ def follow(args, progress: Progress) -> int:
         _err(f"mfcl: warning: {line}")
     k, last = _summary(records)
     verdict = f"first COMMIT at window {k}" if k else "no commit"
-    _err(f"stopped ({why}): {follower.n_scans} scans, {len(records)} windows, {verdict}, "
+    dim = f" ({follower.dim}-D)" if follower.dim else ""
+    _err(f"stopped ({why}): {follower.n_scans} scans{dim}, {len(records)} windows, {verdict}, "
          f"final state {last or 'none'}")  # fmt: skip
     if args.out is not None:
         write_decisions(args.out, records)

@@ -76,7 +76,7 @@ def test_follow_streams_the_decisions_of_the_whole_run(dataset, tmp_path, capsys
     writer.join()
     cap = capsys.readouterr()
     streamed = [json.loads(line) for line in cap.out.splitlines()]
-    assert "stopped (no new data for 3 s): 73 scans, 6 windows" in cap.err
+    assert "stopped (no new data for 3 s): 73 scans (2-D), 6 windows" in cap.err
     assert "error" not in cap.err and "warning" not in cap.err
     assert read_decisions(out) == streamed
     ref = tmp_path / "ref.jsonl"

@@ -77,6 +77,7 @@ def test_many_refusals_write_nothing(folder, tmp_path, capsys):
     shutil.copytree(east, twin)
     fails(["localize", east, twin, "--out-dir", out], twin, "same dataset name as", east)
     fails(["localize", east, west, "--out-dir", east / "scans"], "inside the input folder")
+    fails(["localize", east, west, "--lidar-offset", "1,0,0"], east, "already the sensor pose")
     broken = tmp_path / "broken"
     shutil.copytree(west, broken)
     (broken / "odometry.tum").write_text("0 1 2 3\n")

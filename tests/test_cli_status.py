@@ -158,6 +158,14 @@ def test_progress_is_silent_in_pipes_and_forced_by_the_flag():
     assert lines[0] == "mfcl: compiling ..." and lines[1].startswith("mfcl: compiling: done in")
     assert "\r" not in forced.getvalue()  # a log gets whole lines
     assert list(Progress(True, io.StringIO()).track(iter(()), 0)) == []
+    with Progress(True, forced).counted("registering 3 windows", 3) as done:
+        done(2)
+    assert forced.getvalue().splitlines()[-1].startswith("mfcl: registering 3 windows: done")
+    tty = _Tty()
+    with Progress(None, tty).counted("registering", 3) as done:
+        done(2)
+        done(3)
+    assert "registering" in tty.getvalue() and "3/3" in tty.getvalue()
 
 
 def test_progress_spins_on_a_terminal():

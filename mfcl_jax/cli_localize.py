@@ -1,18 +1,18 @@
 """``mfcl localize | evaluate | simulate``: the robot path, its scoring, and a dataset maker.
 
-Thin: argument parsing and printing; the work is in ``mfcl_jax.localizer``, ``mfcl_jax.score``
-and ``mfcl_jax.sources``.
-Inputs, the odometry convention and plan-frame anchors: ``mfcl_jax.cli_inputs``.
+Thin: argument parsing; the runs (one input, many datasets, ``--follow``) are in
+``mfcl_jax.cli_runs``, the work in ``mfcl_jax.localizer``, ``localize_batch``, ``live``,
+``score`` and ``sources``. Inputs, the odometry convention and the 3-D band:
+``mfcl_jax.cli_inputs`` (flags: ``cli_flags``); what the status lines mean: ``mfcl_jax.status``.
 """
 
 from __future__ import annotations
 
-import json
-import sys
+import argparse
 from pathlib import Path
 
-from mfcl_jax.cli_floorplan import add_rosmap_flags
-from mfcl_jax.cli_inputs import lidar_offset_arg
+from mfcl_jax.cli_flags import add_input_flags
+from mfcl_jax.status import help_text
 
 __all__ = ["add_localize_commands", "cmd_localize", "cmd_evaluate", "cmd_simulate"]
 
@@ -20,45 +20,43 @@ __all__ = ["add_localize_commands", "cmd_localize", "cmd_evaluate", "cmd_simulat
 def add_localize_commands(subparsers) -> None:
     """Adds ``localize``, ``evaluate`` and ``simulate`` to an argparse sub-parser set."""
     lo = subparsers.add_parser(
-        "localize", help="register submap windows to a floor plan and decide per window"
+        "localize",
+        help="register submap windows to a floor plan and decide per window",
+        description="Register submap windows to a floor plan and decide, window by window, "
+        "whether the robot is localized (COMMIT), in a symmetric place (AMBIGUOUS) or not yet "
+        "(DEFER). Status lines go to stdout, decisions to a JSON-lines file.",
+        epilog=help_text(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    lo.add_argument(
-        "dataset",
-        type=Path,
-        nargs="?",
-        help="dataset folder (floorplan.*, odometry.tum, scans/); omit with --bag/--carmen",
-    )
-    lo.add_argument(
-        "--floorplan", type=Path, help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's"
-    )
-    lo.add_argument("--bag", type=Path, help="ROS1 .bag or ROS2 bag folder instead of a dataset")
-    lo.add_argument("--scan-topic", default="/scan", help="LaserScan/PointCloud2 topic (/scan)")
-    lo.add_argument("--odom-topic", default="/odom", help="nav_msgs/Odometry topic (/odom)")
-    lo.add_argument(
-        "--carmen", type=Path, help="CARMEN log (.log/.log.gz; its odometry columns) instead"
-    )
-    lo.add_argument(
-        "--lidar-offset",
-        type=lidar_offset_arg,
-        metavar="X,Y,YAW_DEG",
-        help="LiDAR pose in the robot base frame (bags and CARMEN logs; m, m, deg)",
-    )
-    lo.add_argument(
-        "--tf-static",
-        action="store_true",
-        help="bags: read the LiDAR mounting from /tf_static (chain --base-frame -> scan frame)",
-    )
-    lo.add_argument("--base-frame", default="base_link", help="--tf-static parent (base_link)")
-    add_rosmap_flags(lo)
+    add_input_flags(lo)
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
-    lo.add_argument("--storey", help="IFC storey name or elevation")
     lo.add_argument(
         "--out",
         type=Path,
-        default=Path("decisions.jsonl"),
-        help="decisions JSON lines (written atomically; default decisions.jsonl)",
+        help="decisions JSON lines (written atomically; default decisions.jsonl; with "
+        "--follow: written at the end, only when given)",
+    )
+    lo.add_argument(
+        "--out-dir",
+        type=Path,
+        help="one decisions file per dataset, <dataset name>.jsonl (several datasets)",
+    )
+    lo.add_argument(
+        "--follow",
+        type=Path,
+        metavar="DIR",
+        help="live: watch a dataset folder being written; decide as windows complete, stream "
+        "the decisions as JSON lines on stdout (status on stderr); stop on Ctrl-C or idle",
+    )
+    lo.add_argument(
+        "--idle-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="--follow: stop after S seconds without new data (10)",
     )
     lo.add_argument("--quiet", action="store_true", help="no per-window status lines")
+    add_progress_flag(lo)
     lo.set_defaults(func=cmd_localize)
 
     ev = subparsers.add_parser("evaluate", help="score a decisions log against groundtruth.tum")
@@ -76,62 +74,23 @@ def add_localize_commands(subparsers) -> None:
     si.add_argument("--seed", type=int, default=0, help="noise and drift seed (0)")
     si.add_argument("--storey", help="IFC storey name or elevation")
     si.add_argument("--overwrite", action="store_true", help="replace an existing folder")
+    add_progress_flag(si)
     si.set_defaults(func=cmd_simulate)
 
 
-def cmd_localize(args) -> int:
-    from mfcl_jax.cli_inputs import input_paths, load_input, plan_frame_decision
-    from mfcl_jax.io import DataError, check_output
-
-    if not args.d_s > 0:
-        raise DataError(f"localize: --d-s must be > 0, got {args.d_s}")
-    if args.out.is_dir():
-        raise DataError(f"{args.out}: --out is a folder, expected a file name")
-    check_output(args.out, inputs=input_paths(args))
-    from tqdm import tqdm
-
-    from mfcl_jax.io import write_decisions
-    from mfcl_jax.localizer import LocalizeParams, Localizer
-
-    fp, seq, notes = load_input(args)
-    for note in notes:
-        print(note, file=sys.stderr)
-    loc = Localizer(fp, LocalizeParams().with_d_s(args.d_s))
-    n = loc.n_windows(seq)
-    print(
-        f"{seq.source}: {len(seq)} scans, {n} windows of {args.d_s:g} m; floor plan {fp.name}",
-        file=sys.stderr,
+def add_progress_flag(parser) -> None:
+    parser.add_argument(
+        "--progress",
+        action="store_true",
+        help="progress messages on stderr even when it is not a terminal (default: only then)",
     )
-    offset = [float(v) for v in fp.offset]
-    if any(offset):
-        print(
-            f"{fp.name}: localized in a local frame (plan = local + ({offset[0]:.3f}, "
-            f"{offset[1]:.3f})); status lines show local anchors, {args.out} plan-frame ones",
-            file=sys.stderr,
-        )
-    if n == 0:
-        print("no complete window: the odometry travels less than d_s", file=sys.stderr)
-    decisions, first = [], None
-    try:
-        with tqdm(total=n, file=sys.stderr, unit="win", dynamic_ncols=True) as bar:
-            for r in loc.run(seq):
-                decisions.append(plan_frame_decision(json.loads(r.decision.to_json()), offset))
-                if first is None and r.decision.state == "COMMIT":
-                    first = r.decision.k
-                if not args.quiet:
-                    bar.write(r.status(), file=sys.stdout)
-                bar.update(1)
-    except KeyboardInterrupt:
-        print(
-            f"mfcl: interrupted after {len(decisions)} windows; {args.out} not written",
-            file=sys.stderr,
-        )
-        return 130
-    write_decisions(args.out, decisions)
-    last = decisions[-1]["state"] if decisions else "none"
-    verdict = f"first COMMIT at window {first}" if first else "no commit"
-    print(f"{len(decisions)} windows, {verdict}, final state {last}; decisions: {args.out}")
-    return 0
+
+
+def cmd_localize(args) -> int:
+    from mfcl_jax.cli_runs import localize
+    from mfcl_jax.progress import Progress
+
+    return localize(args, Progress(True if args.progress else None))
 
 
 def cmd_evaluate(args) -> int:
@@ -189,19 +148,26 @@ def cmd_evaluate(args) -> int:
 def cmd_simulate(args) -> int:
     from mfcl_jax.floorplan.load import floorplan_files, load_floorplan
     from mfcl_jax.io import DataError, check_output
+    from mfcl_jax.progress import COMPILING, Progress
 
+    progress = Progress(True if args.progress else None)
     if args.out.exists() and not args.overwrite:
         raise DataError(f"{args.out}: already exists (pass --overwrite to replace it)")
     inputs = [args.trajectory, *floorplan_files(args.floorplan)]
     check_output(args.out, inputs=inputs, folder=True)
-    from mfcl_jax.sources.simulated import simulate_dataset
-    from mfcl_jax.sources.walks import read_waypoints
+    with progress.stage("starting (loading JAX)"):
+        from mfcl_jax.compile_cache import enable_cache
+        from mfcl_jax.sources.simulated import simulate_dataset
+        from mfcl_jax.sources.walks import read_waypoints
 
+        enable_cache()
     wp = read_waypoints(args.trajectory)
-    fp = load_floorplan(args.floorplan, storey=args.storey)
-    out = simulate_dataset(
-        fp, wp, args.out, seed=args.seed, overwrite=args.overwrite, where=str(args.trajectory)
-    )
+    with progress.stage(f"loading {args.floorplan}"):
+        fp = load_floorplan(args.floorplan, storey=args.storey)
+    with progress.stage(f"simulating the walk and writing {args.out} (ray caster: {COMPILING})"):
+        out = simulate_dataset(
+            fp, wp, args.out, seed=args.seed, overwrite=args.overwrite, where=str(args.trajectory)
+        )
     from mfcl_jax.io import read_tum
 
     t, _ = read_tum(out / "odometry.tum")

@@ -9,11 +9,13 @@ batch path's kernel at the newest prefix. Ground truth never enters.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from mfcl_jax import status
 from mfcl_jax import windows as W
 from mfcl_jax.batch import bucket
 from mfcl_jax.decision import DecisionParams, SelectiveInitializer, gate_maps
@@ -73,24 +75,17 @@ class WindowResult:
     frontend_reason: int
     rethinned: bool = False
 
-    def status(self) -> str:
-        """One human-readable status line."""
-        d = self.decision
-        g = d.diagnostics
-        if d.state == "COMMIT":
-            x, y, yaw = d.anchor
-            anchor = f"({x:.2f}, {y:.2f}, {np.rad2deg(yaw):.1f} deg)"
-        else:
-            anchor = "-"
-        tau = "-" if d.tau is None else f"({d.tau[0]:.2f}, {d.tau[1]:.2f})"
-        kind = f" {d.kind}" if d.kind else ""
-        why = f" [{g.get('reason')}]" if g.get("reason") else ""
+    def record(self, offset=(0.0, 0.0)) -> dict:
+        """The decisions-file line: the decision with the robot's pose ``T* X_k`` and the
+        reason (``status.record``; ``offset``: plan = local + offset)."""
+        d = json.loads(self.decision.to_json())
+        return status.record(d, self.X, self.decision.diagnostics.get("reason", ""), offset)
+
+    def status(self, offset=(0.0, 0.0)) -> str:
+        """One human-readable status line (``status.status_line``)."""
         thin = f" rethinned voxel={self.voxel:.2f}" if self.rethinned else ""
-        return (
-            f"k={d.k:3d} t={self.t:10.2f} {d.state:9s}{kind} anchor={anchor} "
-            f"B1={g['B1']} B2={g['B2']} margin={g['margin']} tau={tau} "
-            f"pts={self.n_points}{thin} cands={self.n_candidates}{why}"
-        )
+        detail = f"pts={self.n_points}{thin} cands={self.n_candidates}"
+        return status.status_line(self.record(offset), detail)
 
 
 class Localizer:
@@ -119,19 +114,31 @@ class Localizer:
 
     def run(self, seq, variant: str = "ours") -> Iterator[WindowResult]:
         """Streams the windows of ``seq``; yields one ``WindowResult`` per window."""
-        w = self.windows(seq)
-        kf = w.keyframes
-        init = SelectiveInitializer(
-            self._maps,
-            self.params.decision,
-            variant=variant,
-            k_cap=bucket(len(w), 8),
-            j_cap=self.params.frontend.J,
-            t_cap=bucket(len(kf), 256),
-        )
-        prev_end = -1
+        return self.follow([seq], variant)
+
+    def follow(self, prefixes, variant: str = "ours") -> Iterator[WindowResult]:
+        """Streams the windows of a recording that grows (the live path).
+
+        Args:
+            prefixes: ever longer ``ScanSequence``s of one recording, each extending the one
+                before; every window complete in a prefix and not yet seen is decided.
+                Windows are causal, so the results are ``run``'s on the last prefix.
+            variant: a key of ``decision.OURS_VARIANTS``.
+        """
+        init, prev_end = None, -1
         cap = self.params.window.capacity
-        for k, (j0, j1) in enumerate(w.bounds):
+        for seq, w, k in self._new_windows(prefixes):
+            kf = w.keyframes
+            if init is None:
+                init = SelectiveInitializer(
+                    self._maps,
+                    self.params.decision,
+                    variant=variant,
+                    k_cap=bucket(len(w), 8),
+                    j_cap=self.params.frontend.J,
+                    t_cap=bucket(len(kf), 256),
+                )
+            j0, j1 = w.bounds[k]
             one = W.window(w, k)
             wb = W.pack([(seq, one, 0)], capacity=bucket(cap, 256))
             cand = self._fe.register(wb.submaps, wb.building, keep=True)
@@ -158,6 +165,18 @@ class Localizer:
                 frontend_reason=int(cand.reason[0]),
                 rethinned=bool(W.rethinned(w)[k]),
             )
+
+    def _new_windows(self, prefixes) -> Iterator[tuple]:
+        """``(seq, windows, k)`` of every window of the prefixes not seen before (``k``
+        indexes ``windows``, which holds only the new windows of ``seq``)."""
+        seen = 0
+        for seq in prefixes:
+            if self.n_windows(seq) <= seen:
+                continue
+            w = W.cut(seq, self.params.window, start=seen)
+            for k in range(len(w)):
+                yield seq, w, k
+            seen += len(w)
 
 
 def localize(floorplan, seq, params: LocalizeParams | None = None) -> list:

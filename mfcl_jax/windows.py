@@ -218,11 +218,17 @@ def _thinned(seq, idx, p: WindowParams):
     )
 
 
-def cut(seq, params: WindowParams | None = None, upto: int | None = None) -> Windows:
-    """Cuts a ``ScanSequence`` into windows (``upto``: only the first ``upto`` windows)."""
+def cut(
+    seq, params: WindowParams | None = None, upto: int | None = None, start: int = 0
+) -> Windows:
+    """Cuts a ``ScanSequence`` into windows (``upto``: only the first ``upto`` windows;
+    ``start``: leave out the first ``start``, e.g. those a live run has already seen).
+
+    Windows are causal: cutting a prefix of a sequence gives the first windows of the whole.
+    """
     p = params or WindowParams()
     kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-    bounds = window_bounds(travelled(seq.odometry[kf]), p.d_s, p.step)[:upto]
+    bounds = window_bounds(travelled(seq.odometry[kf]), p.d_s, p.step)[start:upto]
     pts, orgs, vox = [], [], []
     for j0, j1 in bounds:
         a, o, v = _thinned(seq, kf[j0 : j1 + 1], p)

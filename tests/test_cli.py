@@ -10,10 +10,13 @@ import pytest
 from mfcl_jax.cli import main
 from mfcl_jax.floorplan import save_geojson
 from mfcl_jax.floorplan.scenes import get_scene
-from mfcl_jax.io import read_decisions
+from mfcl_jax.io import read_decisions, read_tum
+from mfcl_jax.status import robot_pose
 
-# 207 -> 208, a loop in 208, back to 207: about 40 m, about 17 windows of 6 m.
-WAYPOINTS = [(6.0, 4.0), (6.0, 8.6), (21.0, 8.6), (21.0, 4.0), (18.0, 4.0), (18.0, 8.6), (8.0, 8.6)]
+# 209 -> 208 -> 207 along the corridor side (the start of the scene's T1): about 28 m, 11
+# windows of 6 m; AMBIGUOUS (the 14.6 m period of 207/208) until the last window commits.
+WAYPOINTS = [(37.4, 6.4), (34.0, 7.2), (31.0, 8.6), (26.0, 8.6), (21.0, 6.2), (16.2, 8.6),
+             (11.6, 8.6)]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -53,28 +56,28 @@ def test_round_trip(sim, capsys):
     assert "k=  1" in text and "windows" in text
     lines = out.read_text().splitlines()
     decs = read_decisions(out)  # validates the schema
-    assert len(decs) == len(lines) >= 5
-    for i, (d, line) in enumerate(zip(decs, lines, strict=True), 1):
-        assert list(json.loads(line)) == [
-            "k",
-            "t",
-            "state",
-            "anchor",
-            "symmetry",
-            "tau",
-            "B1",
-            "B2",
-            "margin",
-        ]
+    assert len(decs) == len(lines) == 11
+    keys = ["k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin"]
+    ot, odo = read_tum(ds / "odometry.tum")
+    status = [line for line in text.splitlines() if line.startswith("k=")]
+    for i, (d, line, st) in enumerate(zip(decs, lines, status, strict=True), 1):
+        assert list(json.loads(line)) == keys + ["pose", "reason"]
         assert d["k"] == i and isinstance(d["t"], float)
-        assert (d["anchor"] is None) == (d["state"] != "COMMIT")
+        assert (d["anchor"] is None) == (d["state"] != "COMMIT") == (d["pose"] is None)
+        if d["state"] == "COMMIT":  # the robot's pose now: T* composed with the odometry
+            a, p = d["anchor"], d["pose"]
+            X = odo[np.argmin(np.abs(ot - d["t"]))]
+            want = robot_pose((a["x"], a["y"], np.deg2rad(a["yaw_deg"])), X)
+            np.testing.assert_allclose([p["x"], p["y"]], want[:2], atol=1e-9)
+            assert f"robot at x={p['x']:.2f} m, y={p['y']:.2f} m" in st
+        elif d["reason"]:
+            assert f"{d['reason']} (" in st
     assert [d["t"] for d in decs] == sorted(d["t"] for d in decs)
     assert main(["evaluate", str(ds), "--decisions", str(out), "--windows"]) == 0
     table = capsys.readouterr().out
     assert "first commit k" in table and "final state" in table
-    # A commit, if any, must be scored, and a false one would show as FALSE.
-    if any(d["state"] == "COMMIT" for d in decs):
-        assert "correct" in table or "FALSE" in table
+    # The commit is scored (a false one would show as FALSE).
+    assert decs[-1]["state"] == "COMMIT" and "correct" in table
 
 
 def _fails(argv, capsys, *names):
@@ -184,6 +187,8 @@ def test_localize_bad_inputs(sim, tmp_path, capsys):
         ["localize", "--bag", str(tmp_path / "none.bag"), "--out", str(out)], capsys, "--floorplan"
     )
     _fails(["localize", str(ds), "--d-s", "-1", "--out", str(out)], capsys, "--d-s")
+    _fails(["localize", str(ds), "--out", str(out), "--out-dir", str(tmp_path)], capsys,
+           "--out", "--out-dir")  # fmt: skip
     assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".dec")]
 

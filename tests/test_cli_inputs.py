@@ -193,6 +193,7 @@ def test_tf_static_through_the_cli(tmp_path, capsys, recorder):
     plan = save_geojson(_plan(), tmp_path / "p.geojson")
     out = tmp_path / "d.jsonl"
     argv = ["localize", "--bag", bag, "--floorplan", plan, "--scan-topic", "/points", "--out", out]
+    argv += ["--no-band"]  # ten random points: no floor to cut a band above
     assert main([str(a) for a in argv + ["--tf-static"]]) == 0
     assert "base_link -> os_sensor: x=0.500 m, y=0.000 m, yaw=0.00 deg" in capsys.readouterr().err
     np.testing.assert_allclose(recorder[-1].odometry, [[1.5, 0, 0], [2.5, 0, 0]])

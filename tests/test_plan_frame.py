@@ -5,7 +5,6 @@ plan's frame with full precision."""
 from __future__ import annotations
 
 import json
-from types import SimpleNamespace
 
 import jax
 import numpy as np
@@ -117,13 +116,14 @@ class _StubLocalizer:
 
     def run(self, seq):
         from mfcl_jax.decision.stream import Decision
+        from mfcl_jax.localizer import WindowResult
 
         cx, cy = (float(v) for v in self.fp.room_centroids[0])
         for k in (1, 2):
             state = "COMMIT" if k == 2 else "DEFER"
             d = Decision(k, float(k), state, (cx + 0.123456789, cy, 0.25), None, None,
                          {"B1": 3, "B2": 0, "margin": 3})  # fmt: skip
-            yield SimpleNamespace(decision=d, status=lambda d=d: f"k={d.k} {d.state}")
+            yield WindowResult(d, 0, 0, float(k), np.zeros(3), 0, 0.1, 0, 0)
 
 
 @pytest.mark.parametrize("shift", SHIFTS, ids=["1e7", "utm"])

@@ -1,4 +1,10 @@
-"""Decisions as JSON lines (ARCHITECTURE.md): one object per submap window."""
+"""Decisions as JSON lines (ARCHITECTURE.md): one object per submap window.
+
+Each line holds ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and, in files written
+since ``mfcl localize`` reports them, ``pose`` (the robot's pose ``{x, y, yaw_deg}`` in the
+plan frame when COMMIT, else null) and ``reason`` (why a DEFER / AMBIGUOUS, ``""`` when
+none). Files without the two optional keys still read; a line that has them is checked.
+"""
 
 from __future__ import annotations
 
@@ -8,11 +14,21 @@ from pathlib import Path
 
 from mfcl_jax.io.errors import DataError, atomic_write_text
 
-__all__ = ["write_decisions", "read_decisions", "STATES", "SYMMETRIES"]
+__all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMMETRIES"]
 
 STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
 SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
 _KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
+_OPTIONAL = ("pose", "reason")
+
+
+def _check_pose(where: str, name: str, a) -> None:
+    if a is None:
+        return
+    if not isinstance(a, dict) or set(a) != {"x", "y", "yaw_deg"}:
+        raise DataError(f"{where}: {name}={a!r}, expected {{x, y, yaw_deg}} or null")
+    if not all(isinstance(a[k], int | float) and math.isfinite(a[k]) for k in a):
+        raise DataError(f"{where}: {name}={a!r} has a non-finite value")
 
 
 def _check(where: str, d: dict) -> dict:
@@ -24,27 +40,37 @@ def _check(where: str, d: dict) -> dict:
     if d["symmetry"] not in SYMMETRIES:
         raise DataError(f"{where}: symmetry={d['symmetry']!r}, expected one of {SYMMETRIES}")
     a = d["anchor"]
-    if a is not None:
-        if not isinstance(a, dict) or set(a) != {"x", "y", "yaw_deg"}:
-            raise DataError(f"{where}: anchor={a!r}, expected {{x, y, yaw_deg}} or null")
-        if not all(isinstance(a[k], int | float) and math.isfinite(a[k]) for k in a):
-            raise DataError(f"{where}: anchor={a!r} has a non-finite value")
+    _check_pose(where, "anchor", a)
     if d["state"] == "COMMIT" and a is None:
         raise DataError(f"{where}: a COMMIT needs an anchor")
+    if "pose" in d:
+        _check_pose(where, "pose", d["pose"])
+        if (d["pose"] is None) == (d["state"] == "COMMIT"):
+            raise DataError(
+                f"{where}: pose={d['pose']!r} with state={d['state']!r}; a pose is given "
+                "exactly when the state is COMMIT"
+            )
+    if "reason" in d and not isinstance(d["reason"], str):
+        raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]
     if tau is not None and (not isinstance(tau, list) or len(tau) != 2):
         raise DataError(f"{where}: tau={tau!r}, expected [tx, ty] or null")
     return d
 
 
+def decision_line(d: dict, where: str = "<decision>") -> str:
+    """One validated JSON line (no newline) of a decision dict, keys in the file's order."""
+    d = _check(where, dict(d))
+    keys = _KEYS + tuple(k for k in _OPTIONAL if k in d)
+    return json.dumps({k: d[k] for k in keys}, allow_nan=False)
+
+
 def write_decisions(path, decisions) -> Path:
-    """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin``)
-    as JSON lines, validated first and written atomically (all or nothing)."""
+    """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and,
+    when present, ``pose`` and ``reason``) as JSON lines, validated first and written
+    atomically (all or nothing)."""
     path = Path(path)
-    lines = []
-    for i, d in enumerate(decisions):
-        d = _check(f"{path}: decision #{i}", dict(d))
-        lines.append(json.dumps({k: d[k] for k in _KEYS}, allow_nan=False))
+    lines = [decision_line(d, f"{path}: decision #{i}") for i, d in enumerate(decisions)]
     return atomic_write_text(path, "\n".join(lines) + ("\n" if lines else ""))
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from mfcl_jax.io.atomic import atomic_write
 from mfcl_jax.io.errors import DataError
 
-__all__ = ["read_pcd", "write_pcd"]
+__all__ = ["read_pcd", "write_pcd", "pcd_fields"]
 
 _TYPES = {
     ("F", 4): "f4",
@@ -74,6 +74,23 @@ def _count(path: Path, header: dict) -> int:
     if "WIDTH" in header and n != w * h:
         raise DataError(f"{path}: header POINTS {n} disagrees with WIDTH*HEIGHT {w}*{h} = {w * h}")
     return n
+
+
+def pcd_fields(path) -> list[str]:
+    """The ``FIELDS`` of a PCD file, from its header alone (e.g. does it hold ``z``?).
+
+    Raises:
+        DataError: missing or unreadable file, a header without a DATA line.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            raw = f.read(1 << 16)
+    except FileNotFoundError:
+        raise DataError(f"{path}: file not found") from None
+    except OSError as e:
+        raise DataError(f"{path}: cannot read ({e.strerror})") from None
+    return list(_header(path, raw)[0].get("FIELDS", []))
 
 
 def read_pcd(path, return_dropped: bool = False, xyz: bool = False):

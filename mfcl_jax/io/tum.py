@@ -13,7 +13,7 @@ import numpy as np
 
 from mfcl_jax.io.errors import DataError, atomic_write_text
 
-__all__ = ["read_tum", "write_tum", "format_time", "yaw_from_quat", "quat_from_yaw"]
+__all__ = ["read_tum", "parse_tum", "write_tum", "format_time", "yaw_from_quat", "quat_from_yaw"]
 
 
 def yaw_from_quat(q) -> np.ndarray:
@@ -51,37 +51,52 @@ def read_tum(path, with_strings: bool = False):
         lines = path.read_text().splitlines()
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
+    times, poses, strs = parse_tum(lines, path)
+    return (times, poses, strs) if with_strings else (times, poses)
+
+
+def parse_tum(lines, where, first_line: int = 1, after: float = -math.inf):
+    """Parses TUM lines (``read_tum``'s rules), e.g. the lines appended to a growing file.
+
+    Args:
+        lines: the text lines.
+        where: the file, for messages.
+        first_line: number of ``lines[0]`` in the file (messages name file lines).
+        after: the time of the line before ``lines[0]`` (times must keep increasing).
+
+    Returns:
+        ``(times (N,), poses (N, 3), time strings)``.
+    """
     strs, rows = [], []
-    prev = -math.inf
-    for no, line in enumerate(lines, 1):
+    prev = after
+    for no, line in enumerate(lines, first_line):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
         cols = s.split()
         if len(cols) != 8:
             raise DataError(
-                f"{path}:{no}: expected 8 columns 't x y z qx qy qz qw', got {len(cols)}"
+                f"{where}:{no}: expected 8 columns 't x y z qx qy qz qw', got {len(cols)}"
             )
         try:
             vals = [float(c) for c in cols]
         except ValueError:
-            raise DataError(f"{path}:{no}: not a number in {s!r}") from None
+            raise DataError(f"{where}:{no}: not a number in {s!r}") from None
         if not all(math.isfinite(v) for v in vals):
-            raise DataError(f"{path}:{no}: non-finite value in {s!r}")
+            raise DataError(f"{where}:{no}: non-finite value in {s!r}")
         if vals[0] <= prev:
             raise DataError(
-                f"{path}:{no}: timestamp {cols[0]} does not increase (previous {prev!r})"
+                f"{where}:{no}: timestamp {cols[0]} does not increase (previous {prev!r})"
             )
         q = np.asarray(vals[4:8])
         if np.linalg.norm(q) < 1e-9:
-            raise DataError(f"{path}:{no}: zero quaternion")
+            raise DataError(f"{where}:{no}: zero quaternion")
         prev = vals[0]
         strs.append(cols[0])
         rows.append(vals)
     arr = np.asarray(rows, float).reshape(-1, 8)
-    times = arr[:, 0]
     poses = np.stack([arr[:, 1], arr[:, 2], yaw_from_quat(arr[:, 4:8])], -1)
-    return (times, poses, strs) if with_strings else (times, poses)
+    return arr[:, 0], poses, strs
 
 
 def format_time(t: float) -> str:

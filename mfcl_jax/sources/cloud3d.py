@@ -49,6 +49,7 @@ __all__ = [
     "PlaneParams",
     "SliceInfo",
     "detect_floor",
+    "median_floor",
     "slice_cloud",
     "slice_clouds",
 ]
@@ -225,12 +226,24 @@ def slice_cloud(
     return p[keep, :2], info
 
 
+def median_floor(planes) -> Plane | None:
+    """The median of detected floors (``None`` entries skipped; ``None`` when none is left):
+    what a rigidly mounted sensor's clouds share (see ``slice_clouds``)."""
+    found = [f for f in planes if f is not None]
+    if not found:
+        return None
+    n = np.median([f.normal for f in found], axis=0)
+    h = float(np.median([f.height for f in found]))
+    return Plane(n / np.linalg.norm(n), h, int(np.median([f.n_points for f in found])))
+
+
 def slice_clouds(
     clouds,
     params: BandParams = BandParams(),
     mount: Mount | None = None,
     rigid: bool = True,
     where: str = "<clouds>",
+    names=None,
 ):
     """The planar scans of a sequence of clouds from one sensor.
 
@@ -246,6 +259,8 @@ def slice_clouds(
         params, mount: as ``slice_cloud``.
         rigid: share one floor (see above).
         where: the sequence's name, for messages.
+        names: ``N`` names of the clouds for messages (scan files, stamps); default
+            ``"{where} cloud #i"``.
 
     Returns:
         ``(scans, infos, detected)``: ``N`` arrays ``(m_i, 2)``, ``N`` ``SliceInfo`` (their
@@ -254,27 +269,23 @@ def slice_clouds(
 
     Raises:
         DataError: no cloud shows a floor (with ``relative_to="floor"``), or a cloud has no
-            point in the band (named by its index).
+            point in the band (named by ``names`` or its index).
     """
-    mounted = [_finite_cloud(c, f"{where} cloud #{i}") for i, c in enumerate(clouds)]
+    names = [f"{where} cloud #{i}" for i in range(len(clouds))] if names is None else names
+    mounted = [_finite_cloud(c, n) for c, n in zip(clouds, names, strict=True)]
     if mount is not None:
         mounted = [mount.apply(c) for c in mounted]
     detected = [detect_floor(c, params.planes) for c in mounted]
-    found = [f for f in detected if f is not None]
-    shared = None
-    if found:
-        n = np.median([f.normal for f in found], axis=0)
-        h = float(np.median([f.height for f in found]))
-        shared = Plane(n / np.linalg.norm(n), h, int(np.median([f.n_points for f in found])))
-    elif params.relative_to == "floor":
+    shared = median_floor(detected)
+    if shared is None and params.relative_to == "floor":
         raise DataError(
             f"{where}: no floor plane below the sensor in any of the {len(mounted)} clouds; "
             "use a band relative to the sensor"
         )
     scans, infos = [], []
-    for i, (c, f) in enumerate(zip(mounted, detected, strict=True)):
+    for c, f, name in zip(mounted, detected, names, strict=True):
         use = shared if rigid or f is None else f
-        xy, info = slice_cloud(c, params, floor=use, where=f"{where} cloud #{i}")
+        xy, info = slice_cloud(c, params, floor=use, where=name)
         scans.append(xy)
         infos.append(info)
     return scans, infos, detected

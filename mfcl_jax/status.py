@@ -1,0 +1,225 @@
+"""What a decision means, for a person: the status line of a window, the states and reasons
+explained (``mfcl localize --help`` and ``docs/status.md`` print the same text), and the
+per-line record of the decisions file (the robot's pose and the reason added).
+
+The robot's CURRENT pose at window ``k`` is ``T* X_k``: the anchor ``T* = ^B T_L`` (the
+plan frame from the odometry frame) composed with the odometry pose ``X_k = ^L T_{S_k}`` of
+the window's last scan. A person wants that pose, not the anchor, which is a frame change.
+
+Plain Python (float64, no NumPy or JAX), so ``mfcl --help`` stays light.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = [
+    "STATE_TEXT",
+    "REASON_TEXT",
+    "TERM_TEXT",
+    "help_text",
+    "markdown",
+    "robot_pose",
+    "record",
+    "status_line",
+    "summary_table",
+]
+
+STATE_TEXT = {
+    "COMMIT": "localized: one place in the building explains the scans and no symmetric "
+    "copy of it stays possible; the line gives the robot's current pose in the plan frame.",
+    "AMBIGUOUS": "the scans match the building, but more than one place fits them equally "
+    "(a repeated layout with period tau, a rotational or mirror symmetry, or several separate "
+    "places: multimodal); walk on towards something that tells the places apart.",
+    "DEFER": "not enough evidence yet; the reason says what is missing. Keep moving.",
+}
+
+# Keys: ``decision.state.REASONS`` (a test keeps them in step). Value: (short phrase for a
+# status line, one plain sentence for the help).
+REASON_TEXT = {
+    "unsaturated": (
+        "fewer than two rooms covered yet",
+        "Under the best placement the walk so far lies inside fewer than two rooms, too "
+        "little of the building to tell similar places apart: walk into another room.",
+    ),
+    "winner infeasible": (
+        "the best placement runs the path through walls",
+        "The best placement would put the travelled path through walls or outside the rooms "
+        "(its gate consistency is below tau_c), so it cannot be right.",
+    ),
+    "no feasible champion": (
+        "every placement runs the path through walls",
+        "Every window's best registration was rejected by the feasibility gate: none keeps "
+        "the travelled path inside the building's free space.",
+    ),
+    "spread": (
+        "the supporting windows disagree",
+        "The windows that support the best placement disagree with each other by more than "
+        "sigma_max metres: the registrations are not yet consistent.",
+    ),
+    "below floor": (
+        "the scans match the plan poorly",
+        "Every registration scores below the score floor: the scans do not match this floor "
+        "plan well (wrong plan or storey, or a 3-D cloud sliced at the wrong height?).",
+    ),
+    "no anchors": (
+        "no registration found yet",
+        "The front-end found no candidate placement for any window yet (too few wall points "
+        "or corners in the scans so far).",
+    ),
+    "alias without period": (
+        "a shifted copy fits, with no period",
+        "A shifted copy of the best placement fits the scans as well, but no single period "
+        "of the building explains the shift, so no tau can be given.",
+    ),
+    "not triggered": (
+        "the baseline has not fired",
+        "A baseline policy's commit rule has not fired yet (baselines only; mfcl localize "
+        "runs the selective policy).",
+    ),
+}
+
+TERM_TEXT = {
+    "pose": "COMMIT lines: the robot's current pose in the plan frame, T* X_k (x, y in "
+    "metres, heading in degrees counter-clockwise from the plan's x axis).",
+    "B1": "support of the best placement: how many windows' best registrations agree with "
+    "it (the evidence for it).",
+    "B2": "support of the runner-up, a different placement (the evidence against).",
+    "margin": "B1 - B2. A COMMIT needs B1 >= b_min (3) and margin >= delta_min (2); then a "
+    "probe checks that no symmetric copy of the placement is still feasible.",
+    "tau": "the period (tx, ty in metres) of a repeated layout: the robot's position is known "
+    "only up to whole multiples of tau (AMBIGUOUS translation).",
+}
+
+EXAMPLE = (
+    "k=  1 t=     12.00 DEFER     unsaturated (fewer than two rooms covered yet)  "
+    "[B1=1 B2=0 margin=1]",
+    "k=  3 t=     20.00 AMBIGUOUS repeated layout: position known up to multiples of "
+    "tau=(7.30, 0.00) m  [B1=3 B2=0 margin=3]",
+    "k= 11 t=     48.00 COMMIT    robot at x=21.40 m, y=6.02 m, heading 87.5 deg  "
+    "[B1=9 B2=1 margin=8]",
+)
+
+_KINDS = {
+    "translation": "repeated layout",
+    "rotation": "rotational symmetry",
+    "mirror": "mirror symmetry",
+    "multimodal": "several separate places fit",
+}
+
+
+def _wrap(text: str, indent: str, width: int = 88) -> str:
+    import textwrap
+
+    return textwrap.fill(text, width, initial_indent=indent, subsequent_indent=indent + "  ")
+
+
+def help_text() -> str:
+    """The states, reasons and terms as plain text (the ``mfcl localize`` epilog)."""
+    out = ["status lines (one per window):"]
+    out += [_wrap(f"{s}: {t}", "  ") for s, t in STATE_TEXT.items()]
+    out += ["", "reasons (DEFER, and AMBIGUOUS without a symmetry):"]
+    out += [_wrap(f"{r}: {t}", "  ") for r, (_, t) in REASON_TEXT.items()]
+    out += ["", "numbers:"]
+    out += [_wrap(f"{n}: {t}", "  ") for n, t in TERM_TEXT.items()]
+    return "\n".join(out)
+
+
+def markdown() -> str:
+    """The same text as a Markdown snippet (``docs/status.md``)."""
+    out = [
+        "## Reading `mfcl localize` status lines",
+        "",
+        "One line per window, for example:",
+        "",
+        "```",
+        *EXAMPLE,
+        "```",
+        "",
+        "States:",
+        "",
+    ]
+    out += [f"- **{s}**: {t}" for s, t in STATE_TEXT.items()]
+    out += ["", "Reasons (DEFER, and AMBIGUOUS without a symmetry):", ""]
+    out += [f"- `{r}`: {t}" for r, (_, t) in REASON_TEXT.items()]
+    out += ["", "Numbers:", ""]
+    out += [f"- **{n}**: {t}" for n, t in TERM_TEXT.items()]
+    out += [
+        "",
+        "The decisions file (`--out`, JSON lines) holds the same per line: `k, t, state, "
+        "anchor, symmetry, tau, B1, B2, margin` as before, plus `pose` (`{x, y, yaw_deg}` "
+        'of the robot in the plan frame when COMMIT, else `null`) and `reason` (`""` when '
+        "none).",
+    ]
+    return "\n".join(out) + "\n"
+
+
+def robot_pose(anchor, X) -> tuple[float, float, float]:
+    """``T* X_k``: the pose ``(x, y, yaw)`` (float64, yaw wrapped to ``(-pi, pi]``) from the
+    anchor ``(x, y, yaw)`` and the odometry pose ``X`` (radians)."""
+    ax, ay, ayaw = (float(v) for v in anchor)
+    x, y, yaw = (float(v) for v in X)
+    c, s = math.cos(ayaw), math.sin(ayaw)
+    t = ayaw + yaw
+    return ax + c * x - s * y, ay + s * x + c * y, math.atan2(math.sin(t), math.cos(t))
+
+
+def record(decision: dict, X, reason: str, offset=(0.0, 0.0)) -> dict:
+    """A decisions-file line: ``decision`` (``Decision.to_json``'s keys, anchor in the local
+    frame) with its anchor moved to the plan frame (``offset``: plan = local + offset,
+    ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT) and
+    ``reason``."""
+    d = dict(decision, pose=None, reason=str(reason))
+    a = d["anchor"]
+    if a is None:
+        return d
+    ox, oy = (float(v) for v in offset)
+    yaw = math.radians(a["yaw_deg"])
+    px, py, pyaw = robot_pose((a["x"], a["y"], yaw), X)
+    # Large plan coordinates: add the offset last, in float64, so millimetres survive.
+    d["anchor"] = dict(a, x=float(a["x"]) + ox, y=float(a["y"]) + oy)
+    d["pose"] = {"x": float(px) + ox, "y": float(py) + oy, "yaw_deg": math.degrees(pyaw)}
+    return d
+
+
+def status_line(d: dict, detail: str = "") -> str:
+    """One line for a person from a decisions-file record (``record``'s keys)."""
+    head = f"k={d['k']:3d} t={d['t']:10.2f} {d['state']:9s}"
+    if d["state"] == "COMMIT":
+        p = d["pose"]
+        what = f"robot at x={p['x']:.2f} m, y={p['y']:.2f} m, heading {p['yaw_deg']:.1f} deg"
+    elif d["symmetry"] == "translation" and d["tau"] is not None:
+        tx, ty = d["tau"]
+        what = f"repeated layout: position known up to multiples of tau=({tx:.2f}, {ty:.2f}) m"
+    elif d["symmetry"] in _KINDS:
+        what = _KINDS[d["symmetry"]]
+    elif d.get("reason"):
+        short = REASON_TEXT.get(d["reason"], (d["reason"],))[0]
+        what = f"{d['reason']} ({short})"
+    else:
+        what = "one candidate place; too few agreeing windows yet"
+    tail = f"B1={d['B1']} B2={d['B2']} margin={d['margin']}" + (f" {detail}" if detail else "")
+    return f"{head} {what}  [{tail}]"
+
+
+def summary_table(rows) -> str:
+    """A plain-text table of per-dataset summaries.
+
+    Args:
+        rows: dicts with ``dataset``, ``windows``, ``first_commit`` (k or None) and
+            ``final_state`` (or None when there is no window).
+    """
+    head = ("dataset", "windows", "first commit k", "final state")
+    body = [
+        (
+            str(r["dataset"]),
+            str(r["windows"]),
+            "-" if r["first_commit"] is None else str(r["first_commit"]),
+            r["final_state"] or "-",
+        )
+        for r in rows
+    ]
+    width = [max(len(c) for c in col) for col in zip(head, *body, strict=True)]
+    fmt = "  ".join(f"{{:<{w}}}" for w in width)
+    lines = [fmt.format(*head), fmt.format(*("-" * w for w in width))]
+    return "\n".join(line.rstrip() for line in lines + [fmt.format(*b) for b in body])

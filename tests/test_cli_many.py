@@ -1,0 +1,85 @@
+"""Many datasets in one ``mfcl localize`` call: a folder of dataset folders in one batch, one
+decisions file each, the same decisions as a run on each alone, a summary table; refusals
+before anything is written."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from mfcl_jax.cli import main
+from mfcl_jax.floorplan.scenes import symmetric_bays
+from mfcl_jax.io import read_decisions
+
+WALKS = {
+    "east": [(1.0, 4.2), (3.0, 1.8), (16.0, 1.8)],
+    "west": [(27.0, 1.8), (12.0, 1.8)],
+}
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    from mfcl_jax.sources.simulated import simulate_dataset
+
+    root = tmp_path_factory.mktemp("many") / "all"
+    fp = symmetric_bays().floorplan
+    for seed, (name, wp) in enumerate(WALKS.items()):
+        simulate_dataset(fp, np.asarray(wp), root / name, seed=seed)
+    return root
+
+
+def _snapshot(folder):
+    return {p: p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_folder_of_datasets_in_one_batch(folder, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["localize", str(folder), "--out-dir", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["east.jsonl", "west.jsonl"]
+    table = text[text.index("dataset  windows") :].splitlines()
+    assert table[0].split() == ["dataset", "windows", "first", "commit", "k", "final", "state"]
+    decs = {n: read_decisions(out / f"{n}.jsonl") for n in WALKS}
+    for name, line in zip(sorted(WALKS), table[2:4], strict=True):
+        d = decs[name]
+        first = next((x["k"] for x in d if x["state"] == "COMMIT"), "-")
+        assert line.split() == [name, str(len(d)), str(first), d[-1]["state"]]
+        assert f"{folder / name}: " in text and all("pose" in x and "reason" in x for x in d)
+    # The batch decides as the stream does (a run on one dataset alone).
+    alone = tmp_path / "east.jsonl"
+    assert main(["localize", str(folder / "east"), "--out", str(alone), "--quiet"]) == 0
+    for a, b in zip(decs["east"], read_decisions(alone), strict=True):
+        for key in ("k", "t", "state", "symmetry", "B1", "B2", "margin", "reason"):
+            assert a[key] == b[key], key
+        for key in ("anchor", "pose"):
+            assert (a[key] is None) == (b[key] is None)
+            if a[key] is not None:
+                np.testing.assert_allclose(list(a[key].values()), list(b[key].values()), atol=1e-3)
+        if a["tau"] is not None:
+            np.testing.assert_allclose(a["tau"], b["tau"], atol=1e-3)
+
+
+def test_many_refusals_write_nothing(folder, tmp_path, capsys):
+    def fails(argv, *words):
+        assert main([str(a) for a in argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("mfcl: error:") and err.count("\n") == 1 and "Traceback" not in err
+        for w in words:
+            assert str(w) in err, err
+
+    before = _snapshot(folder)
+    east, west = folder / "east", folder / "west"
+    out = tmp_path / "out"
+    fails(["localize", east, west, "--out", tmp_path / "d.jsonl"], "names one file but 2 datasets")
+    twin = tmp_path / "twin" / "east"
+    shutil.copytree(east, twin)
+    fails(["localize", east, twin, "--out-dir", out], twin, "same dataset name as", east)
+    fails(["localize", east, west, "--out-dir", east / "scans"], "inside the input folder")
+    fails(["localize", east, west, "--lidar-offset", "1,0,0"], east, "already the sensor pose")
+    broken = tmp_path / "broken"
+    shutil.copytree(west, broken)
+    (broken / "odometry.tum").write_text("0 1 2 3\n")
+    fails(["localize", east, broken, "--out-dir", out], broken / "odometry.tum", "8 columns")
+    assert not out.exists() and _snapshot(folder) == before

@@ -72,7 +72,7 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
     pols = [p for p in policies if p in set(runs["policy"])]
     tabs = {"families": report.family_table(runs, pols)}
     tabs["overall"] = tabs["families"][tabs["families"]["family"] == "all"].drop(columns="family")
-    tabs["kinds"] = report.family_table(runs, pols, by="kind")
+    tabs["sources"] = report.family_table(runs, pols, by="source")
     tabs["risk_coverage"] = report.risk_coverage(runs, pols)
     for axis in FAULTS:
         t = report.fault_table(runs, axis, pols)

@@ -29,7 +29,7 @@ def run_table(scored: pd.DataFrame, labels) -> pd.DataFrame:
     """One row per run x policy x set: first commit, correctness, the run's label."""
     keys = ("run", "policy", "set")
     fc = first_commits(scored, keys)
-    meta_cols = [c for c in ("name", "family", "kind", "seed", "walk", "fault", "level")
+    meta_cols = [c for c in ("name", "family", "source", "seed", "walk", "fault", "level")
                  if c in scored]  # fmt: skip
     meta = scored.drop_duplicates("run")[["run", *meta_cols]]
     lab = pd.DataFrame(

@@ -41,7 +41,7 @@ def _procedural(family: str, seed: int, walks: int, params: SimParams, scene=Non
     names = list(scene.trajectories)[:walks]
     recs = simulate(scene, names, [seed], params)
     meta = {"fault": "", "level": "", **meta}
-    out = _tag(recs, family=family, kind="procedural", seed=seed, **meta)
+    out = _tag(recs, family=family, source="procedural", seed=seed, **meta)
     for r, n in zip(out, names, strict=True):
         r.meta["walk"] = n
     return out
@@ -75,7 +75,7 @@ def _ifc(model: str, seed: int, n: int, cfg: BenchmarkConfig):
     trajs = {f"tour{i}": w for i, w in enumerate(tours)}
     scene = Scene(f"ifc:{model}", fp, np.zeros((0, 2, 2)), trajs)
     recs = simulate(scene, list(trajs), [seed], SimParams())
-    out = _tag(recs, family=f"ifc:{model}", kind="ifc", seed=seed, fault="", level="")
+    out = _tag(recs, family=f"ifc:{model}", source="ifc", seed=seed, fault="", level="")
     for r, n_ in zip(out, trajs, strict=True):
         r.meta["walk"] = n_
     return out
@@ -89,7 +89,7 @@ def _logs(family: str, cfg: BenchmarkConfig):
         recs = logs.bag_recordings(cfg.log_windows, cfg.log_length, cache_dir=cache)
     else:
         recs = logs.log_recordings(family[4:], cfg.log_windows, cfg.log_length, cache_dir=cache)
-    out = _tag(recs, family=family, kind="log", fault="", level="")
+    out = _tag(recs, family=family, source="log", fault="", level="")
     for r in out:
         r.meta.setdefault("seed", 0)
         r.meta["walk"] = r.meta.get("trajectory", r.name)

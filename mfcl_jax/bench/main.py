@@ -47,6 +47,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     col = collect(cfg, _groups(cfg), mcl_runner)
     scored = decide_and_score(col, cfg, ours or ["ours"])
     runs = report.run_table(scored, col.labels)
+    _write_windows(scored, col.labels, Path(cfg.out))
     keep = set(cfg.policies)
     runs = runs[runs["policy"].isin(keep)]
     out = Path(cfg.out)
@@ -64,6 +65,29 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     if cfg.figures:
         _pictures(cfg, out)
     return tables
+
+
+WINDOW_COLS = ["run", "name", "family", "fault", "level", "policy", "k", "state", "kind",
+               "reason", "B1", "B2", "margin", "n_groups", "x", "y", "yaw_deg", "err_xy",
+               "err_yaw_deg", "correct", "ident_k"]  # fmt: skip
+
+
+def _write_windows(scored: pd.DataFrame, labels, out: Path) -> None:
+    """Every window of every run at the default thresholds (``windows.csv.gz``), with the
+    geometric label of the window: the raw material for reading a run's decision log."""
+    from mfcl_jax.bench.run import DEFAULT_SET
+
+    w = scored[scored["set"] == DEFAULT_SET].copy()
+    ik = [lb.identifiable_k for lb in labels]
+    w["ident_k"] = [
+        bool(ik[r][k - 1]) if k - 1 < len(ik[r]) else False
+        for r, k in zip(w["run"], w["k"], strict=True)
+    ]
+    out.mkdir(parents=True, exist_ok=True)
+    w[[c for c in WINDOW_COLS if c in w]].to_csv(
+        out / "windows.csv.gz", index=False, float_format="%.4g",
+        compression={"method": "gzip", "mtime": 0},
+    )  # fmt: skip
 
 
 def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:

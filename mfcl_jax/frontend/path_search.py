@@ -42,9 +42,9 @@ __all__ = ["SearchParams", "PlanFields", "plan_fields", "search", "evaluate_plac
 class SearchParams:
     """Static settings of the search (a change recompiles)."""
 
-    coarse_res: float = 0.35
-    sigma_coarse: float = 0.45
-    yaw_step_deg: float = 4.0
+    coarse_res: float = 0.5
+    sigma_coarse: float = 0.5
+    yaw_step_deg: float = 5.0
     peaks_per_yaw: int = 6
     n_peaks: int = 32  # coarse peaks polished
     n_out: int = 12  # placements returned
@@ -270,7 +270,7 @@ def _through(o, pts, ok, fields, margin, steps):
 
 
 @partial(jax.jit, static_argnames=("steps",))
-def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin=0.5, steps=40):
+def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin=0.5, steps=24):
     """Per-scan statistics of placements.
 
     Args:

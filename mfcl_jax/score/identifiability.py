@@ -47,10 +47,12 @@ __all__ = ["LabelParams", "RunLabel", "label_runs"]
 class LabelParams:
     """What "explains every scan about as well" means (fixed once)."""
 
-    beams: int = 128  # rays per scan used (evenly over the valid returns)
+    beams: int = 64  # rays per scan used (evenly over the valid returns)
     ray_fracs: tuple = (0.3, 0.6, 0.85)  # free samples along each ray (coarse search only)
     search_points: int = 3072
     search_free: int = 2048
+    search_crop: float = 12.0  # the search uses returns within this range (m) of the sensor
+    keep_ratio: float = 0.6  # alternatives scoring below this share of the best are dropped
     drop_hit: float = 0.12
     rise_through: float = 0.03
     smooth: int = 3
@@ -102,11 +104,10 @@ def _subsample(a, ok, n, rng):
 
 
 def _prefixes(K: int) -> list[int]:
-    ks, k = [], 1
-    while k < K:
-        ks.append(k)
-        k *= 2
-    return ks + [K]
+    """Searched prefixes: the first window, the middle and the whole run (alternatives of a
+    longer path are alternatives of its prefixes; these three find the building's symmetries
+    and the aliases of the early windows)."""
+    return sorted({1, (K + 1) // 2, K})
 
 
 def _dedupe(G, xy: float = 0.3, deg: float = 2.0):
@@ -155,7 +156,8 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
         cands = []
         for k in _prefixes(K):
             e = ends[k - 1] + 1
-            cp, cm = _subsample(pts[:e], pok[:e], p.search_points, rng)
+            near = pok[:e] & (np.linalg.norm(pts[:e] - P[:e, None, :2], axis=-1) <= p.search_crop)
+            cp, cm = _subsample(pts[:e], near, p.search_points, rng)
             cf, cfm = _subsample(free[:e], fok[:e], p.search_free, rng)
             c = cp[cm].mean(0) if cm.any() else P[0, :2]
             ext = float(np.max(np.abs(np.concatenate([cp[cm], cf[cfm]]) - c))) if cm.any() else 1
@@ -163,7 +165,8 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             g, sc = ps.search(cp - c, cm, cf - c, cfm, fields, p.search, n_img)
             g, sc = np.asarray(g, np.float64), np.asarray(sc)
             shift = np.array([-c[0], -c[1], 0.0])
-            for gi in g[np.isfinite(sc)]:
+            good = np.isfinite(sc) & (sc >= p.keep_ratio * np.max(sc, initial=0.0))
+            for gi in g[good]:
                 cands.append(np.asarray(se2.compose(gi, shift), np.float64))
         G = _dedupe(np.concatenate([np.zeros((1, 3)), np.asarray(cands).reshape(-1, 3)]))
         hit, thr, pb = (np.asarray(a, np.float64) for a in ps.evaluate_placements(

@@ -137,7 +137,8 @@ def disjoint_count(onehot, start, end):
         return (jnp.where(take, e, last), n + take.astype(jnp.int32)), None
 
     g = onehot.shape[0]
-    init = (jnp.full((g,), -1, start.dtype), jnp.zeros((g,), jnp.int32))
+    start, end = start.astype(jnp.int32), end.astype(jnp.int32)
+    init = (jnp.full((g,), -1, jnp.int32), jnp.zeros((g,), jnp.int32))
     (_, n), _ = jax.lax.scan(step, init, (onehot.T, start, end))
     return n
 

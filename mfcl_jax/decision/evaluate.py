@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax.decision import gate as gate_mod
-from mfcl_jax.decision import lattice, policies
+from mfcl_jax.decision import lattice, machine, policies
 from mfcl_jax.decision.anchors import candidate_anchors, per_run
 from mfcl_jax.decision.state import (
     REASONS,
@@ -90,7 +90,13 @@ def evaluate_run(
 
     f = jax.vmap(ours_prefix, in_axes=(None, 0))  # prefixes
     f = jax.vmap(f, in_axes=(0, None))  # threshold sets
-    ours = f(params, jnp.arange(kk))
+    raw = f(params, jnp.arange(kk))  # (S, K, V0, ...)
+
+    def held(p, d, ug):  # the commit machine over the prefixes of one (set, variant)
+        return machine.track(d, maps, traj, traj_mask, window_end, p, ug)
+
+    h = jax.vmap(held, in_axes=(None, 1, 0), out_axes=1)  # variants
+    ours = jax.vmap(h, in_axes=(0, 0, None))(params, raw, var.use_gate)  # sets
     base = jax.vmap(lambda p: policies.baselines(H, score, mask, table, window_mask, p))(params)
     ours = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), ours)  # (K, S, V0, ...)
     base = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), base)  # (K, S, 4, ...)

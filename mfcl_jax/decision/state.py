@@ -66,6 +66,8 @@ REASONS = {
     6: "spread",
     7: "alias without period",
     8: "not triggered",
+    9: "commit contradicted",
+    10: "commit infeasible",
 }
 
 

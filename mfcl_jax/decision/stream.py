@@ -4,7 +4,8 @@ The initializer keeps padded host buffers (windows, candidates, trajectory sampl
 capacities double when full, so the jitted single-prefix decision recompiles only
 ``O(log n)`` times over a run. Each update evaluates exactly the batch path's kernel
 (``state.decide_prefix``) on the newest prefix, with gate consistencies computed directly at
-that prefix (bit-identical to the batch path's cumulative table), so the stream reproduces the
+that prefix (bit-identical to the batch path's cumulative table), then one step of the commit
+machine (``machine.step``, whose memory the initializer keeps), so the stream reproduces the
 batch states.
 """
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from mfcl_jax import se2
 from mfcl_jax.decision import gate as gate_mod
-from mfcl_jax.decision import lattice
+from mfcl_jax.decision import lattice, machine
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.policies import OURS_VARIANTS
 from mfcl_jax.decision.state import REASONS, STATE_NAMES, DecisionParams, decide_prefix
@@ -76,13 +77,13 @@ class Decision:
 
 @partial(jax.jit, static_argnames=("n_cap",))
 def _decide_latest(
-    H, score, mask, traj, traj_mask, window_start, window_end, k, maps, p, flags, n_cap=3
+    H, score, mask, traj, traj_mask, window_start, window_end, k, maps, p, flags, held, n_cap=3
 ):
     cons = gate_mod.consistency_at(maps, H, traj, traj_mask, window_end[k])
     ug, up, bm, dm = flags
     bm = jnp.where(bm < 0, p.b_min, bm)
     dm = jnp.where(dm < 0, p.delta_min, dm)
-    return decide_prefix(
+    raw = decide_prefix(
         k,
         H,
         score,
@@ -99,6 +100,8 @@ def _decide_latest(
         dm,
         n_cap,
     )
+    c_held = gate_mod.consistency_at(maps, held.anchor, traj, traj_mask, window_end[k])
+    return machine.step(held, raw, c_held, p, ug)
 
 
 def _grow(a: np.ndarray, axis: int, need: int, fill) -> np.ndarray:
@@ -152,6 +155,7 @@ class SelectiveInitializer:
         self.k = 0
         self.t = 0
         self.n_rejected = 0
+        self._held = machine.initial()
 
     def update(
         self,
@@ -206,7 +210,7 @@ class SelectiveInitializer:
         first_new = self.t - tr.shape[0]
         self.window_start[self.k] = first_new if window_start is None else int(window_start)
         self.k += 1
-        d = _decide_latest(
+        held, d = _decide_latest(
             self.H,
             self.score,
             self.mask,
@@ -218,9 +222,10 @@ class SelectiveInitializer:
             self._maps,
             self._params,
             self._flags,
+            self._held,
             n_cap=self._n_cap,
         )
-        d = jax.tree.map(np.asarray, d)
+        self._held, d = held, jax.tree.map(np.asarray, d)
         kind = lattice.KIND_NAMES[int(d.kind)]
         return Decision(
             k=self.k,

@@ -1,0 +1,85 @@
+"""The commit machine: a commit persists, tracks, and ends only on contradicting evidence."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax.decision import machine
+from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, REASONS, DecisionParams, Decisions
+
+P = DecisionParams().as_arrays()
+
+
+def _raw(states, anchors):
+    """A sequence of per-prefix decisions (only the fields the machine reads matter)."""
+    k = len(states)
+    z = jnp.zeros(k, jnp.float32)
+    i = jnp.zeros(k, jnp.int32)
+    return Decisions(
+        state=jnp.asarray(states, jnp.int32),
+        kind=i,
+        anchor=jnp.asarray(anchors, jnp.float32),
+        tau=jnp.zeros((k, 2)),
+        b1=i,
+        b2=i,
+        margin=i,
+        n_groups=i,
+        n_champions=i,
+        spread=z,
+        rooms=i,
+        c_winner=z,
+        winner_gate=jnp.zeros(k, bool),
+        probe_alias=jnp.zeros(k, bool),
+        probe_c=z,
+        reason=i,
+        max_score=z,
+        alias_motion=jnp.zeros((k, 3)),
+    )
+
+
+def _run(states, anchors, c_held=None):
+    raw = _raw(states, anchors)
+    c = jnp.ones(len(states)) if c_held is None else jnp.asarray(c_held, jnp.float32)
+
+    def body(held, xs):
+        d, ci = xs
+        return machine.step(held, d, ci, P, jnp.bool_(True))
+
+    _, out = jax.lax.scan(body, machine.initial(), (raw, c))
+    return jax.tree.map(np.asarray, out)
+
+
+A = np.array([10.0, 5.0, 0.3])
+FAR = A + [7.3, 0.0, 0.0]
+
+
+def test_commit_persists_through_a_late_ambiguity_and_tracks_drift():
+    drift = [A + [0.05 * k, 0.0, 0.002 * k] for k in range(6)]
+    states = [DEFER, COMMIT, AMBIGUOUS, AMBIGUOUS, DEFER, COMMIT]
+    out = _run(states, drift)
+    assert list(out.state) == [DEFER] + [COMMIT] * 5
+    # the held anchor follows the per-prefix winner while it stays the same place
+    np.testing.assert_allclose(out.anchor[1:], np.asarray(drift[1:]), atol=1e-5)
+    assert list(out.reason[1:]) == [0] * 5
+
+
+def test_a_far_anchor_while_undecided_does_not_move_the_commit():
+    states = [COMMIT, AMBIGUOUS, COMMIT]
+    out = _run(states, [A, FAR, A])
+    assert list(out.state) == [COMMIT] * 3
+    np.testing.assert_allclose(out.anchor, np.stack([A, A, A]), atol=1e-6)
+
+
+def test_a_decisive_other_anchor_contradicts_the_commit():
+    out = _run([COMMIT, COMMIT, COMMIT, COMMIT], [A, A, FAR, FAR])
+    assert list(out.state) == [COMMIT, COMMIT, AMBIGUOUS, COMMIT]
+    assert REASONS[int(out.reason[2])] == "commit contradicted"
+    np.testing.assert_allclose(out.anchor[3], FAR, atol=1e-6)  # re-committed afterwards
+
+
+def test_an_infeasible_commit_is_left_with_a_reason():
+    out = _run([COMMIT, COMMIT, DEFER], [A, A, A], c_held=[1.0, 0.1, 1.0])
+    assert list(out.state) == [COMMIT, DEFER, DEFER]
+    assert REASONS[int(out.reason[1])] == "commit infeasible"

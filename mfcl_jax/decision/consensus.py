@@ -67,6 +67,7 @@ class Groups:
     t_star: jax.Array  # (3,) reported anchor: mean of the winner's most recent champions
     spread: jax.Array  # () max planar distance of winner members to t_all
     t_all: jax.Array  # (3,) mean of all the winner's champions (the group centre)
+    seen: jax.Array  # () int32 scan-disjoint windows with a champion, any group (saturation)
 
 
 for _cls in (Champions, Groups):
@@ -160,8 +161,12 @@ def group(ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None) 
     size = jnp.sum(onehot, axis=1).astype(jnp.int32)
     if start is None:
         indep = size
+        seen = jnp.sum(ch.has).astype(jnp.int32)
     else:
-        indep = disjoint_count(onehot, jnp.asarray(start), jnp.asarray(end))
+        start, end = jnp.asarray(start), jnp.asarray(end)
+        both = jnp.concatenate([onehot, ch.has[None]], axis=0)
+        counts = disjoint_count(both, start, end)
+        indep, seen = counts[:-1], counts[-1]
     anchor = se2.mean_pose(jnp.broadcast_to(ch.pose, (k, k, 3)), onehot.astype(ch.pose.dtype))
     winner = jnp.argmax(indep * (k + 1) + size).astype(jnp.int32)  # first max: opened first
     b1 = indep[winner]
@@ -175,4 +180,6 @@ def group(ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None) 
     recent = jnp.asarray(recent, jnp.float32)
     take = members & ((later.astype(jnp.float32) < recent) | (recent <= 0))
     t_star = se2.mean_pose(ch.pose, take.astype(ch.pose.dtype))
-    return Groups(assign, size, indep, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread, t_all)
+    return Groups(
+        assign, size, indep, anchor, ng, winner, b1, b2, b1 - b2, t_star, spread, t_all, seen
+    )

@@ -5,8 +5,10 @@ Layout of the result: a ``Decisions`` whose leaves have leading axes ``(R, K, S,
 ``V = len(ours variants) + len(BASELINES)`` (``policy_names`` gives the order). Per run the
 gate table ``(K, J, K)`` is computed once (it does not depend on thresholds). Per (threshold
 set, prefix) the decision core (champions, groups, lattice over all groups, alias probe) is
-computed once per gate mode (on, off) and shared by every variant with that gate flag; the
-variants' floors and probe flag are applied after (``state.finish``). The baselines are
+computed once per gate mode (on, off) and shared by every variant with that gate flag and by
+every threshold set: the sets may differ only in the knobs ``state.KNOBS`` (the floors and the
+baselines' ratios), which only ``state.finish`` and the baselines read; the variants' floors
+and probe flag are applied after (``state.finish``). The baselines are
 ``vmap``ped over threshold sets. Runs go through ``lax.map`` in chunks of ``run_chunk`` so
 memory stays bounded on a CPU.
 """
@@ -72,25 +74,31 @@ def evaluate_run(
     table = gate_mod.prefix_table(maps, H, traj, traj_mask, window_end)  # (K, J, Kp)
     modes = jnp.asarray([True, False])  # gate on / off: the only flag the core depends on
 
-    def ours_prefix(p, k):
+    p0 = jax.tree.map(lambda x: x[0], params)  # the core reads no knob (see KNOBS)
+
+    def cores_at(k):
         def core(ug):
             cons = table[:, :, k]
             bounds = (window_start, window_end)
-            return prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p, ug, n_cap)
+            return prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p0, ug,
+                               n_cap)  # fmt: skip
 
-        cores = jax.vmap(core)(modes)
+        return jax.vmap(core)(modes)
 
+    cores = jax.vmap(cores_at)(jnp.arange(kk))  # (K, 2 modes, ...)
+
+    def ours_prefix(p, c2):
         def one(ug, up, bm, dm):
             bm = jnp.where(bm < 0, p.b_min, bm)
             dm = jnp.where(dm < 0, p.delta_min, dm)
-            c = jax.tree.map(lambda x: jnp.where(ug, x[0], x[1]), cores)
+            c = jax.tree.map(lambda x: jnp.where(ug, x[0], x[1]), c2)
             return finish(c, maps, p, ug, up, bm, dm)
 
         return jax.vmap(one)(var.use_gate, var.use_probe, var.b_min, var.delta_min)
 
     f = jax.vmap(ours_prefix, in_axes=(None, 0))  # prefixes
     f = jax.vmap(f, in_axes=(0, None))  # threshold sets
-    raw = f(params, jnp.arange(kk))  # (S, K, V0, ...)
+    raw = f(params, cores)  # (S, K, V0, ...)
 
     def held(p, d, ug):  # the commit machine over the prefixes of one (set, variant)
         return machine.track(d, maps, traj, traj_mask, window_end, p, ug)

@@ -9,7 +9,8 @@ Order of tests (first that fires wins):
 1. no valid candidate                                  -> DEFER ("no anchors")
 2. best score below the floor                          -> DEFER ("below floor")
 3. no admitted champion (all gated)                    -> DEFER ("no feasible champion")
-4. fewer than 2 rooms spanned under T*                 -> DEFER ("unsaturated")
+4. fewer than ``b_min`` scan-disjoint windows have a champion (any group): the evidence is
+   not saturated yet; no room labels needed, so occupancy maps work -> DEFER ("unsaturated")
 5. T* fails the gate / spread > sigma_max              -> DEFER ("winner infeasible"/"spread")
 6. margin < delta_min and tied groups form a lattice   -> AMBIGUOUS(translation, tau)
 7. B1 >= b_min and margin >= delta_min: probe aliases; an admissible translational one
@@ -19,8 +20,9 @@ Order of tests (first that fires wins):
 8. otherwise -> AMBIGUOUS (multimodal with >= 2 groups, no kind with one group)
 
 ``T*`` (the reported anchor, ``Decisions.anchor``) is the mean of the winner's most recent
-champions (``DecisionParams.recent``); tests 4, 5 and 7 (rooms spanned, winner gate, probe)
-use it because it is the anchor a commit hands over. Grouping, ``B_m``, the margin, the
+champions (``DecisionParams.recent``); tests 5 and 7 (winner gate, probe) use it because it
+is the anchor a commit hands over. ``rooms`` (rooms spanned under ``T*``) is reported as a
+diagnostic only. Grouping, ``B_m``, the margin, the
 spread (test 5, about the all-member mean) and the lattice (all-member group means) are as
 in the paper.
 
@@ -46,6 +48,7 @@ __all__ = [
     "COMMIT",
     "STATE_NAMES",
     "REASONS",
+    "KNOBS",
     "DecisionParams",
     "Decisions",
     "PrefixCore",
@@ -53,6 +56,10 @@ __all__ = [
     "finish",
     "decide_prefix",
 ]
+
+# The thresholds a threshold-set axis may vary (each policy's own knob): read only after the
+# shared decision core, by ``finish`` and the baselines.
+KNOBS = ("b_min", "delta_min", "confidence_ratio", "support_ratio")
 
 DEFER, AMBIGUOUS, COMMIT = 0, 1, 2
 STATE_NAMES = {DEFER: "DEFER", AMBIGUOUS: "AMBIGUOUS", COMMIT: "COMMIT"}
@@ -106,12 +113,20 @@ class DecisionParams:
 
     @staticmethod
     def stack(params: list[DecisionParams]) -> DecisionParams:
-        """A threshold set axis ``(S,)`` from a list of parameter sets."""
+        """A threshold set axis ``(S,)`` from a list of parameter sets.
+
+        The sets may differ only in ``KNOBS`` (the decision core is shared by every set).
+        """
         names = [f.name for f in fields(DecisionParams)]
         for p in params:
             for n in names:
                 if not np.isfinite(float(getattr(p, n))):
                     raise ValueError(f"DecisionParams: non-finite {n}={getattr(p, n)!r}")
+                if n not in KNOBS and float(getattr(p, n)) != float(getattr(params[0], n)):
+                    raise ValueError(
+                        f"DecisionParams.stack: sets may differ only in {KNOBS}; "
+                        f"{n}={getattr(p, n)!r} differs from {getattr(params[0], n)!r}"
+                    )
         vals = {n: jnp.asarray([float(getattr(p, n)) for p in params], jnp.float32) for n in names}
         return DecisionParams(**vals)
 
@@ -235,7 +250,7 @@ def finish(
         ~core.any_anchor,
         core.max_score < p.score_floor,
         g.n_groups == 0,
-        pr.rooms < 2,
+        g.seen.astype(jnp.float32) < b_min,
         ~gate_w,
         g.spread > p.sigma_max,
         (margin < delta_min) & lat_ok,

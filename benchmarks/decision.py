@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax import se2
-from mfcl_jax.decision import DecisionParams, evaluate, gate_maps, policy_names, variants
+from mfcl_jax.decision import DecisionParams, decision_maps, evaluate, policy_names, variants
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 from tests.test_decision_scenes import PITCH, row_of_rooms, walk  # noqa: E402
@@ -101,7 +101,7 @@ def main():
     ap.add_argument("--cases", default="one_run,batch,study")
     ap.add_argument("--out", default="results/bench_decision.csv")
     a = ap.parse_args()
-    maps = jax.tree.map(jnp.asarray, gate_maps(row_of_rooms()))
+    maps = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms()))
     params = DecisionParams.stack([DecisionParams(tau_c=t) for t in np.linspace(0.4, 0.7, a.sets)])
     var = variants()
     p1 = DecisionParams.stack([DecisionParams()])

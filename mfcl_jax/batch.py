@@ -20,6 +20,9 @@ __all__ = [
     "SubmapBatch",
     "RunBatch",
     "Candidates",
+    "Evidence",
+    "EVIDENCE_POINTS",
+    "evidence_sample",
     "REASONS",
     "bucket",
     "pad_submaps",
@@ -101,6 +104,38 @@ class RunBatch:
         return int(self.window_mask.shape[1])
 
 
+@dataclass(frozen=True)
+class Evidence:
+    """A small, fixed-size sample of every submap, which the decision layer re-scores under
+    competing anchors (``decision.certify``).
+
+    Attributes:
+        points: ``(N, P, 2)`` float32 points in the submap frame, evenly spread over the
+            submap's points (deterministic).
+        origins: ``(N, P, 2)`` their ray origins.
+        mask: ``(N, P)`` bool.
+    """
+
+    points: jax.Array
+    origins: jax.Array
+    mask: jax.Array
+
+
+EVIDENCE_POINTS = 128
+
+
+def evidence_sample(points, origins, n: int = EVIDENCE_POINTS):
+    """``(pts (n, 2), org (n, 2), mask (n,))`` evenly spread over ``points (m, 2)``."""
+    m = len(points)
+    out_p = np.zeros((n, 2), np.float32)
+    out_o = np.zeros((n, 2), np.float32)
+    mask = np.zeros(n, bool)
+    if m:
+        idx = np.unique(np.linspace(0, m - 1, min(n, m)).round().astype(int))
+        out_p[: len(idx)], out_o[: len(idx)], mask[: len(idx)] = points[idx], origins[idx], True
+    return out_p, out_o, mask
+
+
 # Why a submap produced no candidates (Candidates.reason); the decision layer reports DEFER.
 REASONS = {
     0: "ok",
@@ -128,7 +163,7 @@ class Candidates:
     reason: jax.Array
 
 
-for _cls in (SubmapBatch, RunBatch, Candidates):
+for _cls in (SubmapBatch, RunBatch, Candidates, Evidence):
     _register(_cls)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from mfcl_jax import status
 from mfcl_jax import windows as W
 from mfcl_jax.batch import bucket
-from mfcl_jax.decision import DecisionParams, SelectiveInitializer, gate_maps
+from mfcl_jax.decision import DecisionParams, SelectiveInitializer, decision_maps
 from mfcl_jax.decision.stream import Decision
 from mfcl_jax.frontend import FrontendParams
 from mfcl_jax.frontend.driver import FrontEnd
@@ -101,7 +101,7 @@ class Localizer:
         self.floorplan = floorplan
         self.params = params or LocalizeParams()
         self._fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
-        self._maps = gate_maps(floorplan)
+        self._maps = decision_maps(floorplan)
 
     def windows(self, seq) -> W.Windows:
         """The windows of ``seq`` (as the batch path cuts them)."""
@@ -152,6 +152,7 @@ class Localizer:
                 traj,
                 t=float(w.t[k]),
                 window_start=int(j0),
+                evidence=(w.points[k], w.origins[k]),
             )
             yield WindowResult(
                 decision=dec,

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mfcl_jax.batch import RunBatch, SubmapBatch, bucket
+from mfcl_jax.batch import EVIDENCE_POINTS, Evidence, RunBatch, SubmapBatch, bucket, evidence_sample
 from mfcl_jax.io.errors import DataError
 
 __all__ = [
@@ -257,6 +257,7 @@ class WindowBatch:
         runs: ``RunBatch`` (``R`` runs, ``K`` windows, ``T`` keyframes max).
         building: ``(N,)`` int32 building index of each submap.
         run_building: ``(R,)`` int32 building index of each run.
+        evidence: ``Evidence`` sample of every submap (kept by ``concat``).
         windows: the ``R`` ``Windows`` (for times, odometry and keyframes when scoring).
     """
 
@@ -264,6 +265,7 @@ class WindowBatch:
     runs: RunBatch
     building: np.ndarray
     run_building: np.ndarray
+    evidence: Evidence
     windows: list = field(default_factory=list)
 
 
@@ -293,6 +295,9 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     points = np.zeros((n, cap, 2), np.float32)
     origins = np.zeros((n, cap, 2), np.float32)
     mask = np.zeros((n, cap), bool)
+    ev_p = np.zeros((n, EVIDENCE_POINTS, 2), np.float32)
+    ev_o = np.zeros((n, EVIDENCE_POINTS, 2), np.float32)
+    ev_m = np.zeros((n, EVIDENCE_POINTS), bool)
     X = np.zeros((n, 3), np.float32)
     run = np.zeros(n, np.int32)
     window = np.zeros(n, np.int32)
@@ -316,6 +321,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
         traj_mask[r, :m] = True
         for k, (pts, org) in enumerate(zip(w.points, w.origins, strict=True)):
             points[i, : len(pts)], origins[i, : len(pts)], mask[i, : len(pts)] = pts, org, True
+            ev_p[i], ev_o[i], ev_m[i] = evidence_sample(pts, org)
             X[i], run[i], window[i], t[i], building[i] = w.X[k], r, k, w.t[k], b
             submap[r, k] = i
             i += 1
@@ -325,7 +331,8 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     subs = SubmapBatch(points, origins, mask, X, run, window, t, np.zeros(n, np.int32))
     runs = RunBatch(traj, traj_t, traj_mask, window_start, window_end, window_mask, submap)
     rb = np.asarray([b for *_, b in items], np.int32)
-    return WindowBatch(subs, runs, building, rb, [w for _, w, _ in items])
+    ev = Evidence(ev_p, ev_o, ev_m)
+    return WindowBatch(subs, runs, building, rb, ev, [w for _, w, _ in items])
 
 
 def window(w: Windows, k: int) -> Windows:
@@ -395,10 +402,13 @@ def concat(batches) -> WindowBatch:
         for b in batches
         for w in b.windows
     ]
+    ev = Evidence(*(np.concatenate([getattr(b.evidence, f) for b in batches]) for f in
+                    ("points", "origins", "mask")))  # fmt: skip
     return WindowBatch(
         sub,
         rb,
         np.concatenate([b.building for b in batches]),
         np.concatenate([b.run_building for b in batches]),
+        ev,
         light,
     )

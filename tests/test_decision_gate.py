@@ -10,10 +10,11 @@ from mfcl_jax import se2
 from mfcl_jax.decision import gate, lattice
 from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
 from mfcl_jax.decision.consensus import leader_groups
+from mfcl_jax.decision.maps import decision_maps
 from tests.test_decision_scenes import PITCH, row_of_rooms, three_rooms, walk
 
-ROW = jax.tree.map(jnp.asarray, gate.gate_maps(row_of_rooms()))
-CLOSED = jax.tree.map(jnp.asarray, gate.gate_maps(row_of_rooms(closed=(2,))))
+ROW = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms()))
+CLOSED = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms(closed=(2,))))
 
 
 _consistency = jax.jit(gate.consistency_at)
@@ -97,7 +98,7 @@ def test_prefix_table_equals_single_prefix_evaluation():
 
 
 def test_congruent_room_offsets():
-    m = gate.gate_maps(row_of_rooms())
+    m = decision_maps(row_of_rooms())
     offs = m.offsets[m.offsets_mask]
     assert np.allclose(
         sorted(np.abs(offs[:, 0])),
@@ -105,7 +106,7 @@ def test_congruent_room_offsets():
         atol=0.15,
     )
     assert np.allclose(m.generators[m.generators_mask], [[PITCH, 0]], atol=0.15)
-    m3 = gate.gate_maps(three_rooms())
+    m3 = decision_maps(three_rooms())
     assert not m3.offsets_mask.any() and not m3.generators_mask.any()
 
 

@@ -11,10 +11,12 @@ from hypothesis import strategies as st
 
 from mfcl_jax import se2
 from mfcl_jax.decision import (
+    REASONS,
     DecisionParams,
+    RunInputs,
     SelectiveInitializer,
+    decision_maps,
     evaluate,
-    gate_maps,
     pad_maps,
     per_run,
     policy_names,
@@ -33,7 +35,7 @@ PATH = [[10, 2.5], [18, 2.5], [10, 2.5], [3, 2.5], [26, 2.5]]
 
 
 def maps_of(fp):
-    return jax.tree.map(jnp.asarray, pad_maps(gate_maps(fp), GRID, 4))
+    return jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4))
 
 
 ROW = maps_of(row_of_rooms())
@@ -55,9 +57,9 @@ def pad_run(run):
 
 def evaluate_runs(runs, maps=ROW, params=P1):
     runs = [pad_run(r) for r in runs]
-    keys = ("H", "score", "mask", "traj", "traj_mask", "window_start", "window_end", "window_mask")
-    b = [jnp.asarray(np.stack([r[k] for r in runs])) for k in keys]
-    out = evaluate(*b, maps, params, variants())
+    fields = [f for f in RunInputs.__dataclass_fields__]
+    b = RunInputs(**{f: jnp.asarray(np.stack([r[f] for r in runs])) for f in fields})
+    out = evaluate(b, maps, None, params, variants())
     return jax.tree.map(np.asarray, out)
 
 
@@ -71,8 +73,11 @@ def probe_cands(k, Y):
     return [(Y, 1.0 + 0.01 * k), (shift(Y, PITCH), 0.9), (shift(Y, -3.0, 0.5), 0.2)]
 
 
-def run_of(cand_fn, path=PATH, anchor=A):
-    return make_run(walk(path), anchor, K, cand_fn, J=J)
+ROW_FP = row_of_rooms()
+
+
+def run_of(cand_fn, path=PATH, anchor=A, fp=ROW_FP):
+    return make_run(walk(path), anchor, K, cand_fn, J=J, fp=fp)
 
 
 def ours(out, k=None):
@@ -94,14 +99,23 @@ def test_lattice_ambiguous_then_commit_when_aliases_become_infeasible():
 
 
 def test_probe_blocks_commit_while_alias_is_feasible():
+    """The +pitch image is never a champion. The paper's probe blocks it while the gate admits
+    it; ours blocks it while the scans cannot rule it out (AMBIGUOUS translation, period =
+    pitch, reason "competitor not ruled out"), and commits once a window sees the end wall
+    that the alias would put in the wrong place, no later than the paper's probe."""
     out = evaluate_runs([run_of(probe_cands)])
-    d = ours(out)
-    no_probe = jax.tree.map(lambda x: x[0, :, 0, NAMES.index("no_probe")], out)
-    blocked = [k for k in range(K) if d.state[k] == 1 and d.probe_alias[k] and d.kind[k] == 1]
-    assert blocked, d.state.tolist()
-    assert all(no_probe.state[k] == 2 for k in blocked if d.b1[k] >= 3)
-    assert abs(float(d.tau[blocked[0]][0]) - PITCH) < 0.3
-    assert d.state[-1] == 2
+    by = {n: jax.tree.map(lambda x, i=NAMES.index(n): x[0, :, 0, i], out) for n in NAMES}
+    d, paper, no_probe = by["ours"], by["paper"], by["no_probe"]
+    blocked = [k for k in range(K) if paper.state[k] == 1 and paper.probe_alias[k]]
+    assert blocked and all(paper.kind[k] == 1 for k in blocked), paper.state.tolist()
+    assert all(no_probe.state[k] == 2 for k in blocked if paper.b1[k] >= 3)
+    assert abs(float(paper.tau[blocked[0]][0]) - PITCH) < 0.3
+    held = [k for k in range(K) if d.state[k] == 1 and d.kind[k] == 1]
+    assert held and all(REASONS[int(d.reason[k])] == "competitor not ruled out" for k in held)
+    assert all(abs(float(d.tau[k][0]) - PITCH) < 0.3 for k in held)
+    assert d.state[-1] == 2 and paper.state[-1] == 2
+    first = lambda s: int(np.argmax(np.asarray(s) == 2))  # noqa: E731
+    assert first(d.state) <= first(paper.state)
 
 
 def test_defer_without_anchors_below_floor_and_unsaturated():
@@ -199,19 +213,30 @@ def test_permutation_invariance(seed):
 
 
 def test_rigid_motion_equivariance():
+    """Moving the plan and the anchors by ``g`` moves every decision by ``g``. Exactly for the
+    variants that read the plan through the gate only; the certifying ones re-score the
+    evidence on the moved plan's rasters, whose discretisation perturbs the scores by a few
+    hundredths, so the first commit may move by a window or two where an advantage sits at
+    the margin."""
     g = np.array([4.0, -6.0, 0.6])
     maps_g = maps_of(row_of_rooms().transformed(g))
     run = run_of(lattice_cands)
     run_g = dict(run, H=np.asarray(se2.compose(g, run["H"]), np.float32))
     a, b = evaluate_runs([run]), evaluate_runs([run_g], maps=maps_g)
+    exact = [NAMES.index(n) for n in ("paper", "no_probe", "consensus_only")]
     for f in ("state", "kind", "b1", "b2"):
-        np.testing.assert_array_equal(getattr(a, f)[..., :5], getattr(b, f)[..., :5], err_msg=f)
-    moved = np.asarray(se2.compose(g, a.anchor[..., :5, :]))
-    dxy, dth = se2.distance_pair(moved, b.anchor[..., :5, :])
+        np.testing.assert_array_equal(getattr(a, f)[..., exact], getattr(b, f)[..., exact], f)
+    first = lambda s: int(np.argmax(np.append(np.asarray(s) == 2, True)))  # noqa: E731
+    for n in ("ours", "ours_b2_d1", "ours_b4_d2"):
+        i = NAMES.index(n)
+        assert abs(first(a.state[0, :, 0, i]) - first(b.state[0, :, 0, i])) <= 2, n
+    np.testing.assert_array_equal(a.b1, b.b1)
+    moved = np.asarray(se2.compose(g, a.anchor[..., exact, :]))
+    dxy, dth = se2.distance_pair(moved, b.anchor[..., exact, :])
     assert float(jnp.max(dxy)) < 1e-3 and float(jnp.max(dth)) < 1e-4
-    tr = a.kind[..., :5] == 1
-    rot = np.asarray(se2.rotate(g[2], a.tau[..., :5, :][tr]))
-    np.testing.assert_allclose(rot, b.tau[..., :5, :][tr], atol=1e-3)
+    tr = (a.kind[..., exact] == 1) & (b.kind[..., exact] == 1)
+    rot = np.asarray(se2.rotate(g[2], a.tau[..., exact, :][tr]))
+    np.testing.assert_allclose(rot, b.tau[..., exact, :][tr], atol=1e-3)
 
 
 def test_multimodal_in_non_congruent_rooms():
@@ -221,7 +246,7 @@ def test_multimodal_in_non_congruent_rooms():
     def cands(k, Y):  # champions split between two rooms, no congruent offset
         return [(Y, 1.0), (shift(Y, 7.0), 1.1 if k % 2 else 0.8)]
 
-    out = evaluate_runs([make_run(walk(path), A, K, cands, J=J)], maps=maps3)
+    out = evaluate_runs([make_run(walk(path), A, K, cands, J=J, fp=three_rooms())], maps=maps3)
     d = ours(out)
     assert (d.kind[d.state == 1] != 1).all()
     assert (d.kind == 2).any()
@@ -247,7 +272,7 @@ def test_frame_has_one_row_per_run_window_variant():
 def test_stream_equals_batch():
     run = run_of(lattice_cands)
     out = ours(evaluate_runs([run]))
-    maps = pad_maps(gate_maps(row_of_rooms()), GRID, 4)  # the batch path's padded maps
+    maps = pad_maps(decision_maps(row_of_rooms()), GRID, 4)  # the batch path's padded maps
     init = SelectiveInitializer(maps, DecisionParams(), k_cap=4, j_cap=J, t_cap=T)
     traj, prev = run["traj"], 0
     X = run["X"]
@@ -255,7 +280,11 @@ def test_stream_equals_batch():
         e = int(run["window_end"][k])
         m = run["mask"][k]
         Y = np.asarray(se2.compose(run["H"][k][m], X[k]))
-        d = init.update(Y, run["score"][k][m], X[k], traj[prev : e + 1], t=float(k))
+        ev = run["ev_mask"][k]
+        evidence = (run["ev_points"][k][ev], run["ev_origins"][k][ev])
+        d = init.update(
+            Y, run["score"][k][m], X[k], traj[prev : e + 1], t=float(k), evidence=evidence
+        )
         prev = e + 1
         assert ["DEFER", "AMBIGUOUS", "COMMIT"][out.state[k]] == d.state
         assert d.diagnostics["B1"] == out.b1[k] and d.diagnostics["B2"] == out.b2[k]

@@ -36,6 +36,8 @@ def _raw(states, anchors):
         reason=i,
         max_score=z,
         alias_motion=jnp.zeros((k, 3)),
+        competitor=jnp.zeros((k, 3)),
+        n_live=i,
     )
 
 

@@ -19,9 +19,10 @@ from shapely.geometry import LineString, Polygon
 
 from mfcl_jax import se2
 from mfcl_jax.decision import (
+    REASONS,
     DecisionParams,
     SelectiveInitializer,
-    gate_maps,
+    decision_maps,
     pad_maps,
     to_frame,
 )
@@ -82,7 +83,7 @@ def duplex():
 
 
 FP = duplex()
-MAPS = jax.tree.map(np.asarray, pad_maps(gate_maps(FP), GRID, N_ROOMS))
+MAPS = jax.tree.map(np.asarray, pad_maps(decision_maps(FP), GRID, N_ROOMS))
 P1 = DecisionParams.stack([DecisionParams()])
 INSIDE_A = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2, 2], [2, 6]]  # LA -> BA -> LA
 INTO_S = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2.5, 6], [2.5, 9.5]]  # ... -> S
@@ -100,7 +101,7 @@ def twin_wins(k, Y):
 
 
 def run(path, cands=true_wins):
-    return make_run(walk(path), A, K, cands, J=J)
+    return make_run(walk(path), A, K, cands, J=J, fp=FP)
 
 
 def evaluate(*runs):
@@ -113,11 +114,11 @@ def test_rotational_motion_of_the_building():
     np.testing.assert_allclose(mots[0, :2], G[:2], atol=1e-6)
     assert abs(abs(mots[0, 2]) - np.pi) < 1e-9
     assert support[0] == 4  # LA<->LB, BA<->BB; S and C have no image
-    m = gate_maps(FP)
+    m = decision_maps(FP)
     assert m.motions.shape == (8, 3) and m.motions_mask.sum() == 1
     # translated copies and bare rooms give no rotational motion
     for fp in (row_of_rooms(), three_rooms()):
-        assert not gate_maps(fp).motions_mask.any()
+        assert not decision_maps(fp).motions_mask.any()
 
 
 def test_quarter_turn_pair_gives_a_motion_and_its_inverse():
@@ -130,30 +131,38 @@ def test_quarter_turn_pair_gives_a_motion_and_its_inverse():
     g = mots[np.argmax(mots[:, 2])]
     np.testing.assert_allclose(g, [20.0, 0.0, np.pi / 2], atol=1e-6)
     assert support.tolist() == [1, 1]
-    capped = pad_maps(gate_maps(fp, max_motions=2), (100, 240), 2, n_motions=4)
+    capped = pad_maps(decision_maps(fp, max_motions=2), (100, 240), 2, n_motions=4)
     assert capped.motions.shape == (4, 3) and capped.motions_mask.sum() == 2
     with pytest.raises(ValueError, match="rotational motions"):
-        gate_maps(fp, max_motions=1)
+        decision_maps(fp, max_motions=1)
 
 
-def test_inside_one_unit_is_ambiguous_rotation_not_commit():
+def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_apart():
+    """Inside unit A every window also fits the rotated twin unit B: AMBIGUOUS(rotation).
+    The LiDAR sees, through the doors, the storage and corridor that have no image; once the
+    scans rule the twin out, the run whose champions are true commits (correctly), and the
+    run whose champions are the twin (the Duplex failure) ends "winner contradicted": never a
+    commit to the twin. Without the probe the latter commits to the twin."""
     out = evaluate(run(INSIDE_A), run(INSIDE_A, twin_wins))
     no_probe = NAMES.index("no_probe")
     for r, anchor in ((0, A), (1, np.asarray(se2.compose(G, A)))):
         d = ours(jax.tree.map(lambda x, r=r: x[r : r + 1], out))
-        np_state = out.state[r, :, 0, no_probe]
         rot = (d.state == 1) & (d.kind == ROTATION)
-        assert rot[-1] and rot.sum() >= 3, (d.state.tolist(), d.kind.tolist())
-        assert (d.state != 2).all() and (d.kind != TRANSLATION).all()
-        assert np_state[-1] == 2  # without the probe it commits (to the twin in run 1)
+        assert rot.sum() >= 3, (d.state.tolist(), d.kind.tolist())
+        assert (d.kind != TRANSLATION).all()
+        assert out.state[r, -1, 0, no_probe] == 2  # without the probe it commits
         assert float(se2.distance_pair(out.anchor[r, -1, 0, no_probe], anchor)[0]) < 0.05
         for k in np.nonzero(rot)[0]:
-            assert d.probe_alias[k] and d.probe_c[k] >= 0.5
+            assert d.probe_alias[k] and d.probe_c[k] >= 0.5  # the gate admits the twin
             np.testing.assert_allclose(d.tau[k], 0.0)
-            assert float(se2.distance_pair(d.alias_motion[k], G)[0]) < 1e-4
-            assert float(se2.distance_pair(d.alias_motion[k], G)[1]) < 1e-5
+            dxy, dth = se2.distance_pair(d.alias_motion[k], G)
+            assert float(dxy) < 1e-3 and float(dth) < 1e-4
+        if r == 0:
+            assert d.state[-1] == 2 and float(se2.distance_pair(d.anchor[-1], A)[0]) < 0.05
+        else:
+            assert (d.state != 2).all() and REASONS[int(d.reason[-1])] == "winner contradicted"
     df = to_frame(out, NAMES)
-    row = df[(df.run == 0) & (df.k == K) & (df.policy == "ours")].iloc[0]
+    row = df[(df.run == 0) & (df.k == 3) & (df.policy == "ours")].iloc[0]
     assert row.kind == "rotation" and np.isnan(row.tau_x) and np.isnan(row.tau_y)
 
 
@@ -182,9 +191,13 @@ def test_c2_immunity_of_the_rotation_verdict():
         flooded["mask"][k, j0:] = True
     out = evaluate(base, flooded)
     a, b = (ours(jax.tree.map(lambda x, r=r: x[r : r + 1], out)) for r in (0, 1))
-    for f in ("state", "kind", "b1", "b2", "margin", "n_champions", "alias_motion"):
+    for f in ("state", "kind", "b1", "b2", "margin", "n_champions"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
     np.testing.assert_allclose(a.anchor, b.anchor, atol=1e-4)
+    # the certification's rival may be a flooded copy of the twin (a runner-up), the same
+    # motion up to the flood's jitter
+    dxy, dth = se2.distance_pair(a.alias_motion, b.alias_motion)
+    assert float(np.max(dxy)) < 1e-3 and float(np.max(dth)) < 1e-3
 
 
 @pytest.mark.parametrize("path", [INSIDE_A, INTO_S], ids=["inside_a", "storage"])
@@ -198,7 +211,11 @@ def test_stream_equals_batch_with_rotation(path):
         e = int(r["window_end"][k])
         m = r["mask"][k]
         Y = np.asarray(se2.compose(r["H"][k][m], X[k]))
-        d = init.update(Y, r["score"][k][m], X[k], traj[prev : e + 1], t=float(k))
+        ev = r["ev_mask"][k]
+        evidence = (r["ev_points"][k][ev], r["ev_origins"][k][ev])
+        d = init.update(
+            Y, r["score"][k][m], X[k], traj[prev : e + 1], t=float(k), evidence=evidence
+        )
         prev = e + 1
         assert ["DEFER", "AMBIGUOUS", "COMMIT"][out.state[k]] == d.state
         assert d.kind == {0: None, 1: "translation", 2: "multimodal", 3: "rotation"}[out.kind[k]]
@@ -206,9 +223,8 @@ def test_stream_equals_batch_with_rotation(path):
         line = d.to_json()
         if d.kind == "rotation":
             assert '"symmetry": "rotation"' in line and '"tau": null' in line
-            assert np.allclose(d.diagnostics["alias_motion"][:2], G[:2], atol=1e-4)
+            assert np.allclose(d.diagnostics["alias_motion"][:2], G[:2], atol=1e-3)
         else:
             assert d.diagnostics["alias_motion"] is None
         kinds.append(d.kind)
-    assert kinds[-1] == ("rotation" if path is INSIDE_A else None)
-    assert "rotation" in kinds
+    assert kinds[-1] is None and "rotation" in kinds  # ambiguous until the scans tell

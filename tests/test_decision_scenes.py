@@ -68,13 +68,30 @@ def to_odom(traj_b, anchor):
     return np.asarray(se2.compose(se2.inverse(np.asarray(anchor)), traj_b))
 
 
-def make_run(traj_b, anchor, n_windows, cand_fn, J=8):
+def evidence_at(fp, poses):
+    """What a clean 360-beam LiDAR sees of ``fp``'s walls at ``poses (K, 3)``: the evidence
+    samples ``(points, origins, mask)`` ``(K, P, ...)`` in each pose's frame."""
+    from mfcl_jax.batch import evidence_sample
+    from mfcl_jax.sim import LidarParams, cast, scan_points
+
+    lidar = LidarParams(n_beams=360, sigma=0.0, dropout=0.0)
+    pts = np.asarray(scan_points(cast(np.asarray(poses), fp.wall_faces, lidar)), np.float64)
+    out = []
+    for p in pts:
+        p = p[np.all(np.isfinite(p), 1)]
+        out.append(evidence_sample(p, np.zeros_like(p)))
+    return tuple(np.stack(x) for x in zip(*out, strict=True))
+
+
+def make_run(traj_b, anchor, n_windows, cand_fn, J=8, fp=None):
     """Candidates for windows evenly spread along ``traj_b`` (B frame).
 
-    ``cand_fn(k, Y_true) -> list of (pose_B (3,), score)`` gives the candidates of window k.
+    ``cand_fn(k, Y_true) -> list of (pose_B (3,), score)`` gives the candidates of window k;
+    with ``fp`` each window's evidence is a ray cast of its walls at the true pose (else none).
     Returns a dict of host arrays for one run (K, J padded).
     """
     from mfcl_jax import se2
+    from mfcl_jax.batch import EVIDENCE_POINTS
 
     traj_l = to_odom(traj_b, anchor)
     t = len(traj_l)
@@ -90,7 +107,15 @@ def make_run(traj_b, anchor, n_windows, cand_fn, J=8):
             H[k, j] = np.asarray(se2.anchor(np.asarray(pose, float), X[k]))
             S[k, j] = sc
             M[k, j] = True
+    if fp is not None:
+        ev_p, ev_o, ev_m = evidence_at(fp, Y_true)
+    else:
+        ev_p = np.zeros((n_windows, EVIDENCE_POINTS, 2), np.float32)
+        ev_o, ev_m = ev_p.copy(), np.zeros((n_windows, EVIDENCE_POINTS), bool)
     return dict(
+        ev_points=ev_p,
+        ev_origins=ev_o,
+        ev_mask=ev_m,
         H=H.astype(np.float32),
         score=S.astype(np.float32),
         mask=M,

@@ -4,22 +4,16 @@ alias probe, states."""
 from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
 from mfcl_jax.decision.consensus import champions, group, leader_groups
 from mfcl_jax.decision.evaluate import (
+    RunInputs,
     batch_inputs,
     evaluate,
-    evaluate_batch,
     evaluate_run,
     policy_names,
     to_frame,
 )
-from mfcl_jax.decision.gate import (
-    GateMaps,
-    consistency_at,
-    gate_maps,
-    pad_maps,
-    prefix_table,
-    rooms_spanned,
-)
+from mfcl_jax.decision.gate import consistency_at, prefix_table, rooms_spanned
 from mfcl_jax.decision.lattice import KIND_NAMES, detect
+from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
 from mfcl_jax.decision.policies import BASELINES, OURS_VARIANTS, Variants, baselines, variants
 from mfcl_jax.decision.probe import probe
 from mfcl_jax.decision.state import (
@@ -47,7 +41,7 @@ __all__ = [
     "Decision",
     "DecisionParams",
     "Decisions",
-    "GateMaps",
+    "DecisionMaps",
     "SelectiveInitializer",
     "Variants",
     "baselines",
@@ -58,9 +52,9 @@ __all__ = [
     "detect",
     "evaluate",
     "batch_inputs",
-    "evaluate_batch",
+    "RunInputs",
     "evaluate_run",
-    "gate_maps",
+    "decision_maps",
     "group",
     "leader_groups",
     "pad_maps",

@@ -1,9 +1,12 @@
 """The one decision driver (batch mode): candidates of many runs -> every policy's decision
-at every window, in one compiled call.
+at every window.
 
-Gate maps of every building are padded to one bucket and stacked per run, so runs in different
-buildings share the compilation. Host code only gathers, pads and turns the result into a
-table; the streaming mode for a robot is ``decision.stream``.
+Runs are evaluated in chunks of ``runs_per_call`` runs that together use at most
+``buildings_per_call`` buildings: the chunk's ``DecisionMaps`` are stacked once per building
+(not per run) and every call has the same padded shapes, so one compilation serves the whole
+batch while memory stays bounded (a building's maps hold the gate labels and the two
+verification fields of the certification). Host code only gathers, pads and turns the result
+into a table; the streaming mode for a robot is ``decision.stream``.
 """
 
 from __future__ import annotations
@@ -16,35 +19,51 @@ import pandas as pd
 
 from mfcl_jax.decision import policies
 from mfcl_jax.decision.evaluate import batch_inputs, evaluate, policy_names, to_frame
-from mfcl_jax.decision.gate import GateMaps, gate_maps, pad_maps
+from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
 from mfcl_jax.decision.state import DecisionParams
 
-__all__ = ["run_maps", "decide"]
+__all__ = ["building_maps", "chunks", "decide"]
 
 
-def run_maps(floorplans, run_building, min_iou: float | None = None) -> GateMaps:
-    """Gate maps of the buildings, padded to one bucket and stacked per run ``(R, ...)``."""
+def building_maps(floorplans, used, min_iou: float | None = None) -> dict[int, DecisionMaps]:
+    """``DecisionMaps`` of the buildings ``used``, padded to one bucket (host arrays)."""
     kw = {} if min_iou is None else {"min_iou": min_iou}
-    used = sorted(set(int(b) for b in np.asarray(run_building)))
-    maps = {b: gate_maps(floorplans[b], **kw) for b in used}
+    maps = {b: decision_maps(floorplans[b], **kw) for b in used}
     shape = tuple(int(max(np.asarray(m.label).shape[i] for m in maps.values())) for i in range(2))
     n_rooms = max(m.n_rooms for m in maps.values())
     n_mot = max(int(np.asarray(m.motions).shape[0]) for m in maps.values())
     n_off = max(int(np.asarray(m.offsets).shape[0]) for m in maps.values())
-    padded = {}
+    out = {}
     for b, m in maps.items():
         m = pad_maps(m, shape, n_rooms, n_mot)
         off, om = np.asarray(m.offsets), np.asarray(m.offsets_mask)
-        if off.shape[0] < n_off:
-            extra = n_off - off.shape[0]
-            off = np.concatenate([off, np.zeros((extra, 2), off.dtype)])
-            om = np.concatenate([om, np.zeros(extra, bool)])
-        padded[b] = GateMaps(
+        extra = n_off - off.shape[0]
+        off = np.concatenate([off, np.zeros((extra, 2), off.dtype)])
+        om = np.concatenate([om, np.zeros(extra, bool)])
+        out[b] = DecisionMaps(
             m.origin, m.label, m.adjacency, off, om, m.generators, m.generators_mask,
-            m.motions, m.motions_mask, m.res,
+            m.motions, m.motions_mask, m.sdf4, m.pen4, m.res,
         )  # fmt: skip
-    rows = [padded[int(b)] for b in np.asarray(run_building)]
-    return jax.tree.map(lambda *xs: np.stack(xs), *rows)
+    return out
+
+
+def chunks(run_building, runs_per_call: int, buildings_per_call: int) -> list[np.ndarray]:
+    """Run indices in chunks of at most ``runs_per_call`` runs and ``buildings_per_call``
+    distinct buildings (runs of one building kept together where possible)."""
+    order = np.argsort(np.asarray(run_building), kind="stable")
+    out, cur, seen = [], [], set()
+    for r in order:
+        b = int(run_building[r])
+        if cur and (
+            len(cur) == runs_per_call or (b not in seen and len(seen) == buildings_per_call)
+        ):
+            out.append(np.asarray(cur))
+            cur, seen = [], set()
+        cur.append(int(r))
+        seen.add(b)
+    if cur:
+        out.append(np.asarray(cur))
+    return out
 
 
 def decide(
@@ -54,18 +73,24 @@ def decide(
     params: DecisionParams | list[DecisionParams] | None = None,
     ours=tuple(policies.OURS_VARIANTS),
     min_iou: float | None = None,
+    runs_per_call: int = 32,
+    buildings_per_call: int = 8,
     run_chunk: int = 8,
+    progress=None,
 ) -> tuple[pd.DataFrame, dict]:
     """Every policy's decision at every window of every run of a ``WindowBatch``.
 
     Args:
-        batch: ``windows.WindowBatch``.
+        batch: ``windows.WindowBatch`` (with its evidence samples; points not needed).
         cands: ``Candidates`` of ``batch.submaps`` (host).
         floorplans: ``Floorplan`` per building index.
-        params: one ``DecisionParams`` or a list (a threshold-set axis, no recompilation).
+        params: one ``DecisionParams`` or a list (a threshold-set axis that may vary only
+            ``state.KNOBS``; no recompilation).
         ours: names of our variants to evaluate (baselines are always included).
-        min_iou: room-congruence threshold override for the gate maps (an ablation).
-        run_chunk: runs per step of the sequential map over runs (bounds memory).
+        min_iou: room-congruence threshold override for the maps (an ablation).
+        runs_per_call, buildings_per_call: chunk sizes (static: one compilation).
+        run_chunk: runs per step of the sequential map inside a call.
+        progress: optional callable ``progress(runs_done)``.
 
     Returns:
         ``(frame, timing)``: one row per run x window x threshold set x policy (columns of
@@ -74,14 +99,47 @@ def decide(
     """
     params = params or DecisionParams()
     stacked = DecisionParams.stack(params if isinstance(params, list) else [params])
-    maps = run_maps(floorplans, batch.run_building, min_iou)
     var = policies.variants(ours)
-    args, n_bad = batch_inputs(cands, batch.submaps, batch.runs, maps, stacked, var)
-    t0 = time.perf_counter()
-    compiled = evaluate.lower(*args, run_chunk=run_chunk).compile()
-    tc = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    dec = jax.block_until_ready(compiled(*args))
-    tr = time.perf_counter() - t0
+    runs, stacked, var, n_bad = batch_inputs(cands, batch, stacked, var)
+    rb = np.asarray(batch.run_building)
+    maps = building_maps(floorplans, sorted(set(rb.tolist())), min_iou)
+    any_map = next(iter(maps.values()))
+    parts, tc, tr, compiled = [], 0.0, 0.0, None
+    R = rb.shape[0]
+    for idx in chunks(rb, runs_per_call, buildings_per_call):
+        sub = jax.tree.map(lambda a, i=idx: _pad_rows(np.asarray(a)[i], runs_per_call), runs)
+        used = list(dict.fromkeys(rb[idx].tolist()))
+        stack = [maps[b] for b in used] + [any_map] * (buildings_per_call - len(used))
+        mp = jax.tree.map(lambda *xs: np.stack(xs), *stack)
+        local = np.asarray([used.index(b) for b in rb[idx]], np.int32)
+        local = _pad_rows(local, runs_per_call)
+        if compiled is None:
+            t0 = time.perf_counter()
+            compiled = evaluate.lower(sub, mp, local, stacked, var, run_chunk=run_chunk).compile()
+            tc = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        dec = jax.block_until_ready(compiled(sub, mp, local, stacked, var))
+        tr += time.perf_counter() - t0
+        n = len(idx)
+        parts.append((idx, jax.tree.map(lambda a: np.asarray(a)[:n], dec)))  # noqa: B023
+        if progress is not None:
+            progress(sum(len(i) for i, _ in parts))
+    dec = _scatter(parts, R)
     frame = to_frame(dec, policy_names(ours), batch.runs.window_mask, n_bad)
     return frame, {"compile_s": tc, "run_s": tr}
+
+
+def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
+    if a.shape[0] >= n:
+        return a
+    return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
+
+
+def _scatter(parts, R):
+    """Chunk results back into run order ``(R, ...)``."""
+    leaves, tree = jax.tree.flatten(parts[0][1])
+    out = [np.zeros((R, *a.shape[1:]), a.dtype) for a in leaves]
+    for idx, dec in parts:
+        for o, d in zip(out, jax.tree.leaves(dec), strict=True):
+            o[idx] = d
+    return jax.tree.unflatten(tree, out)

@@ -15,6 +15,7 @@ memory stays bounded on a CPU.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 
 import jax
@@ -30,11 +31,20 @@ from mfcl_jax.decision.state import (
     STATE_NAMES,
     DecisionParams,
     Decisions,
+    certify_core,
     finish,
     prefix_core,
 )
 
-__all__ = ["evaluate_run", "evaluate", "evaluate_batch", "policy_names", "to_frame", "TRACES"]
+__all__ = [
+    "RunInputs",
+    "evaluate_run",
+    "evaluate",
+    "batch_inputs",
+    "policy_names",
+    "to_frame",
+    "TRACES",
+]
 
 TRACES = {"evaluate": 0}  # incremented at trace time; tests count recompilations with it
 
@@ -43,69 +53,93 @@ def policy_names(ours=tuple(policies.OURS_VARIANTS)) -> tuple[str, ...]:
     return tuple(ours) + policies.BASELINES
 
 
-def evaluate_run(
-    H,
-    score,
-    mask,
-    traj,
-    traj_mask,
-    window_start,
-    window_end,
-    window_mask,
-    maps,
-    params,
-    var: policies.Variants,
-    n_cap: int = 3,
-) -> Decisions:
+@dataclass(frozen=True)
+class RunInputs:
+    """What the decision layer sees of one run (leaves ``(R, ...)`` when batched).
+
+    Attributes:
+        H: ``(K, J, 3)`` candidate anchors; score, mask: ``(K, J)``.
+        traj: ``(T, 3)`` odometry at the keyframes; traj_mask: ``(T,)``.
+        window_start, window_end: ``(K,)`` first and last keyframe of each window;
+        window_mask: ``(K,)``.
+        X: ``(K, 3)`` odometry pose of each window's last scan.
+        ev_points, ev_origins: ``(K, P, 2)`` evidence sample of each window (its frame);
+        ev_mask: ``(K, P)``.
+    """
+
+    H: jax.Array
+    score: jax.Array
+    mask: jax.Array
+    traj: jax.Array
+    traj_mask: jax.Array
+    window_start: jax.Array
+    window_end: jax.Array
+    window_mask: jax.Array
+    X: jax.Array
+    ev_points: jax.Array
+    ev_origins: jax.Array
+    ev_mask: jax.Array
+
+
+jax.tree_util.register_dataclass(
+    RunInputs, data_fields=list(RunInputs.__dataclass_fields__), meta_fields=[]
+)
+
+
+def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int = 3) -> Decisions:
     """Every decision of one run.
 
     Args:
-        H: ``(K, J, 3)`` anchors; score, mask: ``(K, J)`` (padded windows masked).
-        traj: ``(T, 3)``; traj_mask: ``(T,)``; window_start, window_end: ``(K,)`` first and
-            last trajectory sample of each window; window_mask: ``(K,)``.
-        maps: ``GateMaps``; params: ``DecisionParams`` with leaves ``(S,)``;
-        var: ``Variants`` with leaves ``(V0,)``.
+        r: ``RunInputs`` of the run (padded windows masked by ``window_mask``).
+        maps: ``DecisionMaps``; params: ``DecisionParams`` with leaves ``(S,)`` (the sets may
+            differ only in ``state.KNOBS``); var: ``Variants`` with leaves ``(V0,)``.
 
     Returns:
         ``Decisions`` with leading axes ``(K, S, V0 + 4)``.
     """
-    kk = H.shape[0]
-    mask = mask & window_mask[:, None]
-    table = gate_mod.prefix_table(maps, H, traj, traj_mask, window_end)  # (K, J, Kp)
+    kk = r.H.shape[0]
+    mask = r.mask & r.window_mask[:, None]
+    table = gate_mod.prefix_table(maps, r.H, r.traj, r.traj_mask, r.window_end)  # (K, J, Kp)
     modes = jnp.asarray([True, False])  # gate on / off: the only flag the core depends on
-
+    bounds = (r.window_start, r.window_end)
+    evidence = (r.ev_points, r.ev_origins, r.ev_mask & r.window_mask[:, None])
     p0 = jax.tree.map(lambda x: x[0], params)  # the core reads no knob (see KNOBS)
 
     def cores_at(k):
         def core(ug):
             cons = table[:, :, k]
-            bounds = (window_start, window_end)
-            return prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p0, ug,
-                               n_cap)  # fmt: skip
+            return prefix_core(k, r.H, r.score, mask, cons, r.traj, r.traj_mask, bounds, maps,
+                               p0, ug, n_cap)  # fmt: skip
 
         return jax.vmap(core)(modes)
 
     cores = jax.vmap(cores_at)(jnp.arange(kk))  # (K, 2 modes, ...)
+    on = jax.tree.map(lambda x: x[:, 0], cores)
+    certs = jax.vmap(
+        lambda k, c: certify_core(k, c, r.H, r.score, r.X, evidence, bounds, maps, p0)
+    )(jnp.arange(kk), on)  # (K, ...): only the gated variants certify
 
-    def ours_prefix(p, c2):
-        def one(ug, up, bm, dm):
+    def ours_prefix(p, c2, cert):
+        def one(ug, up, uc, bm, dm):
             bm = jnp.where(bm < 0, p.b_min, bm)
             dm = jnp.where(dm < 0, p.delta_min, dm)
             c = jax.tree.map(lambda x: jnp.where(ug, x[0], x[1]), c2)
-            return finish(c, maps, p, ug, up, bm, dm)
+            return finish(c, cert, maps, p, ug, up, uc, bm, dm)
 
-        return jax.vmap(one)(var.use_gate, var.use_probe, var.b_min, var.delta_min)
+        return jax.vmap(one)(var.use_gate, var.use_probe, var.use_cert, var.b_min, var.delta_min)
 
-    f = jax.vmap(ours_prefix, in_axes=(None, 0))  # prefixes
-    f = jax.vmap(f, in_axes=(0, None))  # threshold sets
-    raw = f(params, cores)  # (S, K, V0, ...)
+    f = jax.vmap(ours_prefix, in_axes=(None, 0, 0))  # prefixes
+    f = jax.vmap(f, in_axes=(0, None, None))  # threshold sets
+    raw = f(params, cores, certs)  # (S, K, V0, ...)
 
     def held(p, d, ug):  # the commit machine over the prefixes of one (set, variant)
-        return machine.track(d, maps, traj, traj_mask, window_end, p, ug)
+        return machine.track(d, maps, r.traj, r.traj_mask, r.window_end, p, ug)
 
     h = jax.vmap(held, in_axes=(None, 1, 0), out_axes=1)  # variants
     ours = jax.vmap(h, in_axes=(0, 0, None))(params, raw, var.use_gate)  # sets
-    base = jax.vmap(lambda p: policies.baselines(H, score, mask, table, window_mask, p))(params)
+    base = jax.vmap(lambda p: policies.baselines(r.H, r.score, mask, table, r.window_mask, p))(
+        params
+    )
     ours = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), ours)  # (K, S, V0, ...)
     base = jax.tree.map(lambda x: jnp.moveaxis(x, 0, 1), base)  # (K, S, 4, ...)
     return jax.tree.map(lambda a, b: jnp.concatenate([a, b], axis=2), ours, base)
@@ -113,79 +147,54 @@ def evaluate_run(
 
 @partial(jax.jit, static_argnames=("n_cap", "run_chunk"))
 def evaluate(
-    H,
-    score,
-    mask,
-    traj,
-    traj_mask,
-    window_start,
-    window_end,
-    window_mask,
-    maps,
-    params,
-    var,
-    n_cap: int = 3,
-    run_chunk: int = 8,
+    runs: RunInputs, maps, building, params, var, n_cap: int = 3, run_chunk: int = 8
 ) -> Decisions:
-    """``evaluate_run`` over runs ``(R, ...)``; ``maps`` shared or stacked ``(R, ...)``."""
+    """``evaluate_run`` over runs (leaves of ``runs`` ``(R, ...)``).
+
+    ``maps`` is one shared ``DecisionMaps`` (``building`` ignored) or a stack ``(B, ...)`` of
+    buildings, run ``r`` reading building ``building[r]`` (no per-run copy of the maps).
+    """
     TRACES["evaluate"] += 1
-    batched_maps = maps.label.ndim == 3
+    stacked = maps.label.ndim == 3
 
     def one(xs):
-        h, s, m, t, tm, ws, we, wm, mp = xs
-        mp = mp if batched_maps else maps
-        return evaluate_run(h, s, m, t, tm, ws, we, wm, mp, params, var, n_cap)
+        r, b = xs
+        mp = jax.tree.map(lambda a: a[b], maps) if stacked else maps
+        return evaluate_run(r, mp, params, var, n_cap)
 
-    mp = maps if batched_maps else None
-    xs = (H, score, mask, traj, traj_mask, window_start, window_end, window_mask, mp)
-    return jax.lax.map(one, xs, batch_size=run_chunk)
+    b = (
+        jnp.asarray(building, jnp.int32)
+        if building is not None
+        else jnp.zeros(runs.H.shape[0], jnp.int32)
+    )
+    return jax.lax.map(one, (runs, b), batch_size=run_chunk)
 
 
-def batch_inputs(cands, submaps, runs, maps, params, var=None):
-    """The positional arguments of ``evaluate`` from the pipeline's batches.
+def batch_inputs(
+    cands, batch, params, var=None
+) -> tuple[RunInputs, DecisionParams, object, np.ndarray]:
+    """``RunInputs`` of every run of a ``windows.WindowBatch`` (host arrays).
 
     Anchoring (``H = Y X^-1``) and the per-run gather happen here, on the way in.
 
     Returns:
-        ``(args, n_bad)``: ``evaluate(*args)`` evaluates every decision; ``n_bad (R, K)`` counts
-        non-finite candidates that were rejected.
+        ``(runs, params, var, n_bad)``: ``n_bad (R, K)`` counts non-finite candidates that
+        were rejected.
     """
-    H = candidate_anchors(cands.pose, submaps.X)
-    H, s, m, n_bad = per_run(H, cands.score, cands.mask, runs.submap, runs.window_mask)
+    sub, rb = batch.submaps, batch.runs
+    H = candidate_anchors(cands.pose, sub.X)
+    H, s, m, n_bad = per_run(H, cands.score, cands.mask, rb.submap, rb.window_mask)
+    idx = np.clip(np.asarray(rb.submap), 0, max(sub.n - 1, 0))
+    ev = batch.evidence
+    runs = RunInputs(
+        H, s, m, rb.traj, rb.traj_mask, rb.window_start, rb.window_end, rb.window_mask,
+        np.asarray(sub.X)[idx], np.asarray(ev.points)[idx], np.asarray(ev.origins)[idx],
+        np.asarray(ev.mask)[idx] & (np.asarray(rb.submap) >= 0)[..., None],
+    )  # fmt: skip
     if np.ndim(params.tau_c) == 0:
         params = DecisionParams.stack([params])
     var = policies.variants() if var is None else var
-    args = (
-        H,
-        s,
-        m,
-        runs.traj,
-        runs.traj_mask,
-        runs.window_start,
-        runs.window_end,
-        runs.window_mask,
-        maps,
-        params,
-        var,
-    )
-    return args, n_bad
-
-
-def evaluate_batch(
-    cands, submaps, runs, maps, params, var=None, n_cap: int = 3, run_chunk: int = 8
-):
-    """Convenience entry from the pipeline's batches (anchoring and gathering included).
-
-    Args:
-        cands: ``Candidates``; submaps: ``SubmapBatch``; runs: ``RunBatch``.
-        maps: ``GateMaps``; params: ``DecisionParams`` (scalar or stacked ``(S,)``).
-        var: ``Variants`` (default: every entry of ``OURS_VARIANTS``).
-
-    Returns:
-        ``(Decisions (R, K, S, V), n_bad (R, K))``.
-    """
-    args, n_bad = batch_inputs(cands, submaps, runs, maps, params, var)
-    return evaluate(*args, n_cap=n_cap, run_chunk=run_chunk), n_bad
+    return runs, params, var, n_bad
 
 
 def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.DataFrame:

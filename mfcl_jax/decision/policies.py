@@ -3,8 +3,12 @@
 Variants of our method (``OURS_VARIANTS``) differ only in traced flags, so one compiled
 function evaluates all of them:
 
-* ``ours``: gate + consensus + lattice + probe, floors from ``DecisionParams``;
-* ``no_probe``: no alias probe (the lattice test on tied groups stays);
+* ``ours``: gate + independent consensus + lattice + probe + certification (the probe's
+  aliases and every other explanation judged by the scans, ``certify``), floors from
+  ``DecisionParams``;
+* ``paper``: the paper's layer: as ``ours`` without the certification (an alias blocks a
+  commit when the gate admits it);
+* ``no_probe``: no alias probe and no certification (the lattice test on tied groups stays);
 * ``consensus_only``: no gate anywhere; the probe re-gates aliases, so it goes too;
 * ``ours_b2_d1``, ``ours_b4_d2``: commit floors ``(b_min, delta_min)`` = (2, 1), (4, 2)
   (``ours`` is (3, 2)).
@@ -42,13 +46,14 @@ from mfcl_jax.decision.state import COMMIT, DEFER, DecisionParams, Decisions
 
 __all__ = ["Variants", "OURS_VARIANTS", "BASELINES", "variants", "baselines"]
 
-# name: (use_gate, use_probe, b_min, delta_min); floors < 0 mean "from DecisionParams".
+# name: (use_gate, use_probe, use_cert, b_min, delta_min); floors < 0: from DecisionParams.
 OURS_VARIANTS = {
-    "ours": (True, True, -1.0, -1.0),
-    "no_probe": (True, False, -1.0, -1.0),
-    "consensus_only": (False, False, -1.0, -1.0),
-    "ours_b2_d1": (True, True, 2.0, 1.0),
-    "ours_b4_d2": (True, True, 4.0, 2.0),
+    "ours": (True, True, True, -1.0, -1.0),
+    "paper": (True, True, False, -1.0, -1.0),
+    "no_probe": (True, False, False, -1.0, -1.0),
+    "consensus_only": (False, False, False, -1.0, -1.0),
+    "ours_b2_d1": (True, True, True, 2.0, 1.0),
+    "ours_b4_d2": (True, True, True, 4.0, 2.0),
 }
 BASELINES = ("single_shot", "support", "confidence", "gate_only")
 
@@ -59,12 +64,15 @@ class Variants:
 
     use_gate: jax.Array
     use_probe: jax.Array
+    use_cert: jax.Array
     b_min: jax.Array
     delta_min: jax.Array
 
 
 jax.tree_util.register_dataclass(
-    Variants, data_fields=["use_gate", "use_probe", "b_min", "delta_min"], meta_fields=[]
+    Variants,
+    data_fields=["use_gate", "use_probe", "use_cert", "b_min", "delta_min"],
+    meta_fields=[],
 )
 
 
@@ -77,8 +85,9 @@ def variants(names=tuple(OURS_VARIANTS)) -> Variants:
     return Variants(
         use_gate=jnp.asarray(cols[0], bool),
         use_probe=jnp.asarray(cols[1], bool),
-        b_min=jnp.asarray(cols[2], jnp.float32),
-        delta_min=jnp.asarray(cols[3], jnp.float32),
+        use_cert=jnp.asarray(cols[2], bool),
+        b_min=jnp.asarray(cols[3], jnp.float32),
+        delta_min=jnp.asarray(cols[4], jnp.float32),
     )
 
 
@@ -104,6 +113,8 @@ def _decision(state, anchor, reason, max_score, b1=0, b2=0, n=0, c=0.0, gate=Fal
         reason=reason.astype(i32),
         max_score=max_score,
         alias_motion=jnp.zeros((*state.shape, 3), anchor.dtype),
+        competitor=jnp.zeros((*state.shape, 3), anchor.dtype),
+        n_live=jnp.zeros_like(state, i32),
     )
 
 

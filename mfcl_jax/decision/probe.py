@@ -5,7 +5,7 @@ Translational aliases are ``T* + n tau`` (floor-plan-frame translation, orientat
 one is found) and the floor plan's fundamental congruent-room offsets, so an image that the
 front-end's tie-breaking kept out of the champions can still block a commit. Rotational
 aliases are ``g T*`` (composed in SE(2): the whole anchored trajectory carried by ``g``) for
-every rotational self-motion ``g`` of the building (``GateMaps.motions``, see ``symmetry``).
+every rotational self-motion ``g`` of the building (``DecisionMaps.motions``, see ``symmetry``).
 An alias of either kind is admissible iff it passes the gate (``c >= tau_c``) and
 ``c >= c_winner - gamma``; translational ones are reported first.
 
@@ -38,6 +38,8 @@ class ProbeResult:
     rot_alias: jax.Array  # () bool an admissible rotational alias exists
     motion: jax.Array  # (3,) self-motion g of the first admissible rotational alias (zero if none)
     c_rot: jax.Array  # () best rotational alias consistency (0 if none)
+    aliases: jax.Array  # (A, 3) every probed alias (shifted, then rotated)
+    aliases_ok: jax.Array  # (A,) bool admissible by the gate (the certification's competitors)
 
 
 jax.tree_util.register_dataclass(
@@ -51,7 +53,7 @@ def probe(
     """Gates ``T*``, its period-shifted and its rotated aliases on the samples ``t <= end``.
 
     Args:
-        maps: ``GateMaps`` (its ``motions`` give the rotational aliases).
+        maps: ``DecisionMaps`` (its ``motions`` give the rotational aliases).
         t_star: ``(3,)`` winner anchor.
         taus: ``(P, 2)`` probe periods; taus_mask: ``(P,)`` bool (all False: no probe).
         traj: ``(T, 3)``; traj_mask: ``(T,)``; end: last sample index of the prefix.
@@ -93,4 +95,6 @@ def probe(
         rot_alias=rot_found,
         motion=jnp.where(rot_found, g.astype(t_star.dtype), jnp.zeros((3,), t_star.dtype)),
         c_rot=jnp.max(jnp.where(maps.motions_mask, c_rot, 0.0), initial=0.0),
+        aliases=anchors[1:],
+        aliases_ok=jnp.concatenate([adm.reshape(-1), rot_adm]),
     )

@@ -40,7 +40,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax.decision import consensus, lattice, probe
+from mfcl_jax import se2
+from mfcl_jax.decision import certify, consensus, lattice, probe
 
 __all__ = [
     "DEFER",
@@ -54,12 +55,13 @@ __all__ = [
     "PrefixCore",
     "prefix_core",
     "finish",
+    "certify_core",
     "decide_prefix",
 ]
 
 # The thresholds a threshold-set axis may vary (each policy's own knob): read only after the
 # shared decision core, by ``finish`` and the baselines.
-KNOBS = ("b_min", "delta_min", "confidence_ratio", "support_ratio")
+KNOBS = ("b_min", "delta_min", "confidence_ratio", "support_ratio", "cert_margin")
 
 DEFER, AMBIGUOUS, COMMIT = 0, 1, 2
 STATE_NAMES = {DEFER: "DEFER", AMBIGUOUS: "AMBIGUOUS", COMMIT: "COMMIT"}
@@ -75,6 +77,8 @@ REASONS = {
     8: "not triggered",
     9: "commit contradicted",
     10: "commit infeasible",
+    11: "competitor not ruled out",
+    12: "winner contradicted",
 }
 
 
@@ -102,6 +106,8 @@ class DecisionParams:
     confidence_ratio: float = 1.2
     support_ratio: float = 1.5
     recent: float = 3.0
+    cert_margin: float = 0.05
+    cert_sigma: float = 0.07
 
     def replace(self, **kw) -> DecisionParams:
         return replace(self, **kw)
@@ -160,6 +166,8 @@ class Decisions:
     reason: jax.Array  # int32 key of REASONS
     max_score: jax.Array
     alias_motion: jax.Array  # (3,) self-motion g of the rotational alias; zero unless rotation
+    competitor: jax.Array  # (3,) the strongest explanation the certification did not rule out
+    n_live: jax.Array  # int32 competitors not ruled out (0 unless certification blocked)
 
 
 jax.tree_util.register_dataclass(
@@ -183,6 +191,7 @@ class PrefixCore:
     all_ok: jax.Array  # () bool lattice over every live group
     all_tau: jax.Array  # (2,)
     probe_result: probe.ProbeResult  # every probe period on (the variant may switch it off)
+    admitted: jax.Array  # (K, J) bool candidates of the prefix past the floor (and the gate)
 
 
 jax.tree_util.register_dataclass(
@@ -219,15 +228,38 @@ def prefix_core(
         maps, g.t_star, taus, taus_mask, traj, traj_mask, end, p.tau_c, p.gamma, p.n_max, n_cap
     )
     n_ch = jnp.sum(ch.has).astype(jnp.int32)
-    return PrefixCore(any_anchor, max_score, n_ch, g, fit, all_ok, all_tau, pr)
+    return PrefixCore(any_anchor, max_score, n_ch, g, fit, all_ok, all_tau, pr, admitted)
+
+
+def certify_core(k, core: PrefixCore, H, score, X, evidence, bounds, maps, p, n_slots=12):
+    """``certify.CertStats`` of the competitors of the core's ``T*`` at prefix ``k``: the
+    probe's gate-admissible aliases, the other groups, each window's runner-up."""
+    g = core.groups
+    kk = g.size.shape[0]
+    others = (jnp.arange(kk) < g.n_groups) & (jnp.arange(kk) != g.winner)
+    pr = core.probe_result
+    comp, ok = certify.competitors(
+        g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, core.admitted, p
+    )
+    return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots)
 
 
 def finish(
-    core: PrefixCore, maps, p: DecisionParams, use_gate, use_probe, b_min, delta_min
+    core: PrefixCore,
+    cert: certify.CertStats,
+    maps,
+    p: DecisionParams,
+    use_gate,
+    use_probe,
+    use_cert,
+    b_min,
+    delta_min,
 ) -> Decisions:
-    """Applies a variant (gate flag, probe flag, commit floors) to a ``PrefixCore``.
+    """Applies a variant (gate, probe and certification flags, commit floors) to a
+    ``PrefixCore`` and its ``CertStats``.
 
-    ``use_gate`` must be the flag ``core`` was computed with.
+    ``use_gate`` must be the flag ``core`` was computed with. With the certification on, the
+    probe's aliases are judged by the scans (``certify``) rather than by the gate alone.
     """
     g = core.groups
     kk = g.size.shape[0]
@@ -246,6 +278,21 @@ def finish(
     gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
     b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
     decisive = (b1 >= b_min) & (margin >= delta_min)
+    # certification: a competitor is ruled out when some window contradicts it and none
+    # favours it; T* is dominated when a competitor is favoured somewhere, contradicted nowhere
+    m = p.cert_margin
+    against = cert.max_adv >= m
+    favoured = cert.min_adv <= -m
+    live_c = cert.valid & ~(against & ~favoured) & use_cert
+    dominated = jnp.any(cert.valid & favoured & ~against) & use_cert
+    strongest = jnp.argmin(jnp.where(live_c, cert.max_adv, jnp.inf))
+    rival = cert.anchor[strongest]
+    c_kind, c_tau = certify.relation(g.t_star, rival)
+    blocked = jnp.any(live_c) | dominated
+    # without the certification the paper's probe decides alone (gate-admissible aliases)
+    gate_alias = p_alias | r_alias  # reported either way (diagnostic)
+    p_alias = p_alias & ~use_cert
+    r_alias = r_alias & ~use_cert
     tests = [
         ~core.any_anchor,
         core.max_score < p.score_floor,
@@ -256,21 +303,27 @@ def finish(
         (margin < delta_min) & lat_ok,
         decisive & p_alias,
         decisive & r_alias,
+        decisive & dominated,
+        decisive & blocked,
         decisive,
     ]
     multi = jnp.where(g.n_groups >= 2, lattice.MULTIMODAL, lattice.KIND_NONE)
-    states = [DEFER] * 6 + [AMBIGUOUS, AMBIGUOUS, AMBIGUOUS, COMMIT]
+    states = [DEFER] * 6 + [AMBIGUOUS] * 5 + [COMMIT]
     kinds = [lattice.KIND_NONE] * 6 + [
         lattice.TRANSLATION,
         lattice.TRANSLATION,
         lattice.ROTATION,
+        lattice.MULTIMODAL,
+        c_kind,
         lattice.KIND_NONE,
     ]
-    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0, 0]
+    reasons = [1, 2, 3, 4, 5, 6, 0, 0, 0, 12, 11, 0]
     state = jnp.select(tests, states, AMBIGUOUS).astype(jnp.int32)
     kind = jnp.select(tests, kinds, multi).astype(jnp.int32)
     reason = jnp.select(tests, reasons, 0).astype(jnp.int32)
-    tau = jnp.select(tests[6:8], [lat_tau, p_tau], jnp.zeros_like(lat_tau))
+    tau = jnp.select(
+        [tests[6], tests[7], tests[10]], [lat_tau, p_tau, c_tau], jnp.zeros_like(lat_tau)
+    )
     return Decisions(
         state=state,
         kind=kind,
@@ -285,32 +338,25 @@ def finish(
         rooms=pr.rooms,
         c_winner=pr.c_winner,
         winner_gate=pr.c_winner >= p.tau_c,
-        probe_alias=p_alias | r_alias,
+        probe_alias=gate_alias,
         probe_c=jnp.maximum(p_c, r_c),
         reason=reason,
         max_score=core.max_score,
-        alias_motion=jnp.where(kind == lattice.ROTATION, pr.motion, jnp.zeros_like(pr.motion)),
+        alias_motion=jnp.where(
+            kind == lattice.ROTATION,
+            jnp.where(use_cert, se2.compose(rival, se2.inverse(g.t_star)), pr.motion),
+            jnp.zeros_like(pr.motion),
+        ),
+        competitor=jnp.where(blocked, rival, jnp.zeros_like(rival)),
+        n_live=jnp.sum(live_c).astype(jnp.int32),
     )
 
 
 def decide_prefix(
-    k,
-    H,
-    score,
-    mask,
-    cons,
-    traj,
-    traj_mask,
-    bounds,
-    maps,
-    p: DecisionParams,
-    use_gate,
-    use_probe,
-    b_min,
-    delta_min,
-    n_cap: int = 3,
-) -> Decisions:
-    """Our decision at prefix ``k`` (0-based window index).
+    k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p: DecisionParams,
+    flags, n_cap: int = 3,
+) -> Decisions:  # fmt: skip
+    """Our decision at prefix ``k`` (0-based window index), before the commit machine.
 
     Args:
         k: ``()`` int32 prefix (windows ``0..k`` are visible).
@@ -319,10 +365,14 @@ def decide_prefix(
         cons: ``(K, J)`` gate consistency of each candidate at this prefix.
         traj: ``(T, 3)``; traj_mask: ``(T,)``.
         bounds: ``(start (K,), end (K,))`` first and last trajectory sample of every window.
-        maps: ``GateMaps``; p: scalar ``DecisionParams``.
-        use_gate, use_probe: ``()`` bool variant flags (traced).
-        b_min, delta_min: ``()`` commit floors (traced; the variant may override ``p``'s).
+        X: ``(K, 3)`` odometry pose of each window's last scan.
+        evidence: ``(points, origins, mask)`` ``(K, P, ...)`` the windows' evidence samples.
+        maps: ``DecisionMaps``; p: scalar ``DecisionParams``.
+        flags: ``(use_gate, use_probe, use_cert, b_min, delta_min)`` of the variant (traced;
+            floors already resolved against ``p``).
         n_cap: static probe shift capacity.
     """
+    use_gate, use_probe, use_cert, b_min, delta_min = flags
     core = prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p, use_gate, n_cap)
-    return finish(core, maps, p, use_gate, use_probe, b_min, delta_min)
+    cert = certify_core(k, core, H, score, X, evidence, bounds, maps, p)
+    return finish(core, cert, maps, p, use_gate, use_probe, use_cert, b_min, delta_min)

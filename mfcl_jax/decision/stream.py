@@ -20,9 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
+from mfcl_jax.batch import EVIDENCE_POINTS, evidence_sample
 from mfcl_jax.decision import gate as gate_mod
 from mfcl_jax.decision import lattice, machine
 from mfcl_jax.decision.anchors import sanitize
+from mfcl_jax.decision.maps import DecisionMaps, decision_maps
 from mfcl_jax.decision.policies import OURS_VARIANTS
 from mfcl_jax.decision.state import REASONS, STATE_NAMES, DecisionParams, decide_prefix
 
@@ -77,30 +79,17 @@ class Decision:
 
 @partial(jax.jit, static_argnames=("n_cap",))
 def _decide_latest(
-    H, score, mask, traj, traj_mask, window_start, window_end, k, maps, p, flags, held, n_cap=3
+    H, score, mask, traj, traj_mask, bounds, X, evidence, k, maps, p, flags, held, n_cap=3
 ):
-    cons = gate_mod.consistency_at(maps, H, traj, traj_mask, window_end[k])
-    ug, up, bm, dm = flags
+    cons = gate_mod.consistency_at(maps, H, traj, traj_mask, bounds[1][k])
+    ug, up, uc, bm, dm = flags
     bm = jnp.where(bm < 0, p.b_min, bm)
     dm = jnp.where(dm < 0, p.delta_min, dm)
     raw = decide_prefix(
-        k,
-        H,
-        score,
-        mask,
-        cons,
-        traj,
-        traj_mask,
-        (window_start, window_end),
-        maps,
-        p,
-        ug,
-        up,
-        bm,
-        dm,
-        n_cap,
-    )
-    c_held = gate_mod.consistency_at(maps, held.anchor, traj, traj_mask, window_end[k])
+        k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p,
+        (ug, up, uc, bm, dm), n_cap,
+    )  # fmt: skip
+    c_held = gate_mod.consistency_at(maps, held.anchor, traj, traj_mask, bounds[1][k])
     return machine.step(held, raw, c_held, p, ug)
 
 
@@ -119,7 +108,7 @@ class SelectiveInitializer:
     """Streaming selective initializer (our policy or one of its variants).
 
     Args:
-        source: ``Floorplan``, ``Rasters`` or ready ``GateMaps``.
+        source: ``Floorplan``, ``Rasters`` or ready ``DecisionMaps``.
         params: scalar ``DecisionParams``.
         variant: a key of ``OURS_VARIANTS``.
         k_cap, j_cap, t_cap: initial buffer capacities (they double when exceeded).
@@ -139,11 +128,14 @@ class SelectiveInitializer:
             raise ValueError(
                 f"SelectiveInitializer: unknown {variant=}; known {list(OURS_VARIANTS)}"
             )
-        maps = source if isinstance(source, gate_mod.GateMaps) else gate_mod.gate_maps(source)
+        maps = source if isinstance(source, DecisionMaps) else decision_maps(source)
         self._maps = jax.tree.map(jnp.asarray, maps)
         self._params = (params or DecisionParams()).as_arrays()
-        ug, up, bm, dm = OURS_VARIANTS[variant]
-        self._flags = (jnp.bool_(ug), jnp.bool_(up), jnp.float32(bm), jnp.float32(dm))
+        ug, up, uc, bm, dm = OURS_VARIANTS[variant]
+        self._flags = (
+            jnp.bool_(ug), jnp.bool_(up), jnp.bool_(uc), jnp.float32(bm), jnp.float32(dm)
+        )  # fmt: skip
+        self._certifies = bool(uc)
         self._n_cap = n_cap
         self.H = np.zeros((k_cap, j_cap, 3), np.float32)
         self.score = np.zeros((k_cap, j_cap), np.float32)
@@ -152,6 +144,10 @@ class SelectiveInitializer:
         self.traj_mask = np.zeros(t_cap, bool)
         self.window_start = np.zeros(k_cap, np.int32)
         self.window_end = np.zeros(k_cap, np.int32)
+        self.X = np.zeros((k_cap, 3), np.float32)
+        self.ev_points = np.zeros((k_cap, EVIDENCE_POINTS, 2), np.float32)
+        self.ev_origins = np.zeros((k_cap, EVIDENCE_POINTS, 2), np.float32)
+        self.ev_mask = np.zeros((k_cap, EVIDENCE_POINTS), bool)
         self.k = 0
         self.t = 0
         self.n_rejected = 0
@@ -165,6 +161,7 @@ class SelectiveInitializer:
         trajectory_poses_since_last,
         t: float | None = None,
         window_start: int | None = None,
+        evidence=None,
     ) -> Decision:
         """Adds one window and returns the decision at this prefix.
 
@@ -178,6 +175,8 @@ class SelectiveInitializer:
             window_start: index (into all trajectory samples given so far, from 0) of this
                 window's first scan, so overlapping windows count as one piece of evidence
                 (``consensus.disjoint_count``); default: the first sample of this update.
+            evidence: ``(points (n, 2), origins (n, 2))`` of the window's submap in its frame
+                (the certification re-scores them); required by certifying variants.
         """
         Y = np.asarray(candidate_poses, np.float32).reshape(-1, 3)
         s = np.asarray(scores, np.float32).reshape(-1)
@@ -191,12 +190,18 @@ class SelectiveInitializer:
             raise ValueError("update: trajectory_poses_since_last holds non-finite poses")
         if self.t + tr.shape[0] == 0:
             raise ValueError("update: no trajectory sample yet (T_i = 0 on the first window)")
+        if evidence is None and self._certifies:
+            raise ValueError("update: this variant certifies its commits; pass evidence=")
         j = Y.shape[0]
         self.H = _grow(_grow(self.H, 0, self.k + 1, 0.0), 1, j, 0.0)
         self.score = _grow(_grow(self.score, 0, self.k + 1, 0.0), 1, j, 0.0)
         self.mask = _grow(_grow(self.mask, 0, self.k + 1, False), 1, j, False)
         self.window_start = _grow(self.window_start, 0, self.k + 1, 0)
         self.window_end = _grow(self.window_end, 0, self.k + 1, 0)
+        self.X = _grow(self.X, 0, self.k + 1, 0.0)
+        self.ev_points = _grow(self.ev_points, 0, self.k + 1, 0.0)
+        self.ev_origins = _grow(self.ev_origins, 0, self.k + 1, 0.0)
+        self.ev_mask = _grow(self.ev_mask, 0, self.k + 1, False)
         self.traj = _grow(self.traj, 0, self.t + tr.shape[0], 0.0)
         self.traj_mask = _grow(self.traj_mask, 0, self.t + tr.shape[0], False)
         H = np.asarray(se2.anchor(Y, X[None]), np.float32) if j else np.zeros((0, 3), np.float32)
@@ -209,6 +214,11 @@ class SelectiveInitializer:
         self.window_end[self.k] = self.t - 1
         first_new = self.t - tr.shape[0]
         self.window_start[self.k] = first_new if window_start is None else int(window_start)
+        self.X[self.k] = X
+        if evidence is not None:
+            pts, org = (np.asarray(a, np.float64).reshape(-1, 2) for a in evidence)
+            sample = evidence_sample(pts, org)
+            self.ev_points[self.k], self.ev_origins[self.k], self.ev_mask[self.k] = sample
         self.k += 1
         held, d = _decide_latest(
             self.H,
@@ -216,8 +226,9 @@ class SelectiveInitializer:
             self.mask,
             self.traj,
             self.traj_mask,
-            self.window_start,
-            self.window_end,
+            (self.window_start, self.window_end),
+            self.X,
+            (self.ev_points, self.ev_origins, self.ev_mask),
             jnp.int32(self.k - 1),
             self._maps,
             self._params,

@@ -34,7 +34,16 @@ from scipy import ndimage
 
 from mfcl_jax import se2
 
-__all__ = ["FAR", "free_samples", "plan_fields", "stack4", "sample", "occupancy", "score"]
+__all__ = [
+    "FAR",
+    "free_samples",
+    "plan_fields",
+    "stack4",
+    "sample",
+    "occupancy",
+    "score",
+    "score_fields",
+]
 
 FAR = 10.0  # signed distance read off the grid (m): no reward there
 
@@ -142,8 +151,19 @@ def _mean(v, ok):
 def occupancy(pose, pts, ok, feats, sigma):
     """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1]."""
     r = feats.rasters
-    d = sample(r.origin, r.res, feats.sdf4, se2.apply(pose, pts), FAR)
+    return _occupancy(pose, pts, ok, r.origin, r.res, feats.sdf4, sigma)
+
+
+def _occupancy(pose, pts, ok, origin, res, sdf4, sigma):
+    d = sample(origin, res, sdf4, se2.apply(pose, pts), FAR)
     return _mean(jnp.exp(-0.5 * (d / sigma) ** 2), ok)
+
+
+def score_fields(pose, pts, ok, q, q_ok, origin, res, sdf4, pen4, sigma, lam):
+    """``score`` with the fields given explicitly (``origin (2,)``, static ``res``, ``sdf4``,
+    ``pen4``), for callers that hold them outside ``FloorplanFeatures``."""
+    pen = sample(origin, res, pen4, se2.apply(pose, q), 1.0)
+    return _occupancy(pose, pts, ok, origin, res, sdf4, sigma) - lam * _mean(pen, q_ok)
 
 
 def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
@@ -160,5 +180,5 @@ def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
         Scalar score in ``[-lam, 1]``; 0 when there are no points.
     """
     r = feats.rasters
-    pen = sample(r.origin, r.res, feats.pen4, se2.apply(pose, q), 1.0)
-    return occupancy(pose, pts, ok, feats, sigma) - lam * _mean(pen, q_ok)
+    return score_fields(pose, pts, ok, q, q_ok, r.origin, r.res, feats.sdf4, feats.pen4, sigma,
+                        lam)  # fmt: skip

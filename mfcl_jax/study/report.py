@@ -54,7 +54,7 @@ def symmetric_summary(firsts: pd.DataFrame, scored: pd.DataFrame) -> pd.DataFram
 
 def congruence_table(scored: pd.DataFrame, strict: pd.DataFrame, strict_iou: float):
     """Our layer with the default room-congruence threshold vs a strict one, per scene."""
-    from mfcl_jax.decision.gate import MIN_CONGRUENT_IOU
+    from mfcl_jax.decision.maps import MIN_CONGRUENT_IOU
 
     rows = []
     for label, df in (

@@ -1,0 +1,163 @@
+"""Certify before commit: does ``T*`` explain the path seen so far clearly better than every
+competing explanation?
+
+The evidence is the submaps themselves. Every window of the prefix is re-scored under the
+winner ``T*`` and under each competitor ``C`` with the front-end's verification score
+(``frontend.verify.score``: points near plan walls rewarded, rays through plan walls or out of
+the building penalised), the window placed at ``T* X_w`` resp. ``C X_w``. Only the windows of
+a scan-disjoint chain ending at the prefix are used (each scan counted once, as in the
+consensus), compacted into ``n_windows`` slots.
+
+Competitors: the probe's aliases of ``T*`` (period-shifted copies and rotated images by the
+building's self-motions), every other consensus group's anchor, and each window's best
+candidate outside the winner's neighbourhood (the runner-up explanation of that window, which
+the top-1 consensus never sees). A competitor that places the robot within ``CORRECT`` of
+where ``T*`` does is the same answer and is not a competitor.
+
+Per competitor the advantage ``adv_w = s_w(T*) - s_w(C)`` gives two numbers, the largest and
+the smallest advantage over the windows; ``finish`` compares them with the margin
+``cert_margin`` (a knob): ``C`` is ruled out when some window contradicts it
+(``max adv >= margin``) and none favours it (``min adv > -margin``); ``T*`` is dominated when
+some competitor is favoured somewhere and contradicted nowhere. Otherwise ``C`` stays a live
+explanation and the decision is AMBIGUOUS with ``C``'s kind (relative to ``T*``: a translation
+with its period, a rotation, or multimodal; a mirrored wing shows up as one of these, since a
+reflection is not a rigid motion).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+from mfcl_jax import se2
+from mfcl_jax.frontend import verify
+
+__all__ = ["CertStats", "chain", "competitors", "certify", "relation", "CORRECT"]
+
+CORRECT = (1.0, math.radians(5.0))  # same answer: the robot placed within 1 m and 5 deg
+
+
+@dataclass(frozen=True)
+class CertStats:
+    """Per competitor: the anchor, whether it is a competitor, and its advantage extremes."""
+
+    anchor: jax.Array  # (C, 3)
+    valid: jax.Array  # (C,) bool: a competitor distinct from T* (placing the robot elsewhere)
+    max_adv: jax.Array  # (C,) largest  s(T*) - s(C) over the windows used
+    min_adv: jax.Array  # (C,) smallest s(T*) - s(C)
+    n_windows: jax.Array  # () windows used
+
+
+jax.tree_util.register_dataclass(
+    CertStats, data_fields=list(CertStats.__dataclass_fields__), meta_fields=[]
+)
+
+
+def chain(k, start, end, valid, n_slots: int):
+    """Scan-disjoint windows ending at prefix ``k``, latest first, compacted.
+
+    Args:
+        k: ``()`` prefix; start, end: ``(K,)`` keyframe bounds; valid: ``(K,)`` windows with
+            evidence.
+        n_slots: static number of slots returned.
+
+    Returns:
+        ``(idx (n_slots,) int32, ok (n_slots,) bool)``.
+    """
+    kk = start.shape[0]
+
+    def body(i, carry):
+        w = k - i
+        take, limit = carry
+        ok = (w >= 0) & valid[jnp.maximum(w, 0)] & (end[jnp.maximum(w, 0)] < limit)
+        take = take.at[jnp.maximum(w, 0)].set(take[jnp.maximum(w, 0)] | ok)
+        return take, jnp.where(ok, start[jnp.maximum(w, 0)], limit)
+
+    big = jnp.iinfo(jnp.int32).max
+    take, _ = jax.lax.fori_loop(0, kk, body, (jnp.zeros(kk, bool), jnp.int32(big)))
+    order = jnp.argsort(jnp.where(take, -jnp.arange(kk), kk))[:n_slots]
+    return order.astype(jnp.int32), take[order]
+
+
+def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visible, p):
+    """The competitor anchors at one prefix.
+
+    Args:
+        t_star: ``(3,)``; aliases: ``(A, 3)`` with ``aliases_ok``; groups: ``(G, 3)`` other
+            groups' anchors with ``groups_ok``; H, score, visible: ``(K, J, ...)`` candidates of
+            the prefix; p: ``DecisionParams`` (grouping tolerances).
+
+    Returns:
+        ``(anchors (A + G + K, 3), ok (A + G + K,))``: each window's runner-up is its best
+        visible candidate outside the winner's grouping tolerances.
+    """
+    dxy, dth = se2.distance_pair(H, t_star)
+    outside = visible & ((dxy > p.delta_xy) | (dth > p.delta_theta))
+    s = jnp.where(outside, score, -jnp.inf)
+    j = jnp.argmax(s, axis=1)
+    runner = jnp.take_along_axis(H, j[:, None, None], axis=1)[:, 0]
+    runner_ok = jnp.any(outside, axis=1)
+    anchors = jnp.concatenate([aliases, groups, runner], axis=0)
+    ok = jnp.concatenate([aliases_ok, groups_ok, runner_ok])
+    return anchors, ok
+
+
+def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int):
+    """Verification score of each window (rows) under each pose ``(W, C, 3)``."""
+
+    def one_window(pose_c, p, o, m):
+        q, q_ok = verify.free_samples(p, o, m, n_free, 0.3)
+
+        def one(y):
+            return verify.score_fields(
+                y, p, m, q, q_ok, maps.origin, maps.res, maps.sdf4, maps.pen4, sigma, lam
+            )
+
+        return jax.vmap(one)(pose_c)
+
+    return jax.vmap(one_window)(poses, pts, org, pmask)
+
+
+def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int = 12):
+    """``CertStats`` of the competitors of ``T*`` at prefix ``k``.
+
+    Args:
+        k: ``()`` prefix; t_star: ``(3,)``; comp: ``(C, 3)`` with ``comp_ok (C,)``.
+        X: ``(K, 3)`` odometry pose of each window's last scan.
+        evidence: ``(points (K, P, 2), origins (K, P, 2), mask (K, P))`` per window, in the
+            window's frame.
+        bounds: ``(start (K,), end (K,))``; maps: ``DecisionMaps``; p: ``DecisionParams``.
+        n_slots: static number of disjoint windows scored.
+    """
+    pts, org, pmask = evidence
+    start, end = bounds
+    has = jnp.any(pmask, axis=1) & (jnp.arange(start.shape[0]) <= k)
+    idx, ok = chain(k, start, end, has, n_slots)
+    Xw = X[idx]  # (W, 3)
+    anchors = jnp.concatenate([t_star[None], comp], axis=0)  # (1 + C, 3)
+    poses = se2.compose(anchors[None, :, :], Xw[:, None, :])  # (W, 1 + C, 3)
+    s = _window_scores(poses, pts[idx], org[idx], pmask[idx], maps, p.cert_sigma, 1.0, 1)
+    adv = s[:, :1] - s[:, 1:]  # (W, C)
+    max_adv = jnp.max(jnp.where(ok[:, None], adv, -jnp.inf), axis=0)
+    min_adv = jnp.min(jnp.where(ok[:, None], adv, jnp.inf), axis=0)
+    here = se2.compose(anchors, X[k])
+    dxy, dth = se2.distance_pair(here[1:], here[0])
+    distinct = (dxy > CORRECT[0]) | (dth > CORRECT[1])
+    # without evidence nothing is ruled out: every distinct competitor stays live
+    valid = comp_ok & distinct
+    return CertStats(comp, valid, max_adv, min_adv, jnp.sum(ok).astype(jnp.int32))
+
+
+def relation(t_star, c):
+    """Kind of competitor ``c`` relative to ``T*``: the motion ``g = C T*^-1`` of the floor
+    plan; ``(kind, tau (2,))`` with kind 1 translation (``|yaw| < 5 deg``, tau its
+    translation), 3 rotation (a quarter-turn multiple within 5 deg), else 2 multimodal."""
+    g = se2.compose(c, se2.inverse(t_star))
+    yaw = jnp.abs(se2.wrap(g[2]))
+    quarter = jnp.abs(yaw - jnp.round(yaw / (math.pi / 2)) * (math.pi / 2))
+    tol = math.radians(5.0)
+    kind = jnp.where(yaw < tol, 1, jnp.where(quarter < tol, 3, 2)).astype(jnp.int32)
+    return kind, jnp.where(kind == 1, g[:2], jnp.zeros(2, g.dtype))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -29,7 +31,7 @@ def _raw(states, anchors):
         n_champions=i,
         spread=z,
         rooms=i,
-        c_winner=z,
+        c_winner=jnp.ones(k, jnp.float32),
         winner_gate=jnp.zeros(k, bool),
         probe_alias=jnp.zeros(k, bool),
         probe_c=z,
@@ -41,16 +43,11 @@ def _raw(states, anchors):
     )
 
 
-def _run(states, anchors, c_held=None):
+def _run(states, anchors, c_winner=None):
     raw = _raw(states, anchors)
-    c = jnp.ones(len(states)) if c_held is None else jnp.asarray(c_held, jnp.float32)
-
-    def body(held, xs):
-        d, ci = xs
-        return machine.step(held, d, ci, P, jnp.bool_(True))
-
-    _, out = jax.lax.scan(body, machine.initial(), (raw, c))
-    return jax.tree.map(np.asarray, out)
+    if c_winner is not None:
+        raw = dataclasses.replace(raw, c_winner=jnp.asarray(c_winner, jnp.float32))
+    return jax.tree.map(np.asarray, machine.track(raw, P, jnp.bool_(True)))
 
 
 A = np.array([10.0, 5.0, 0.3])
@@ -82,6 +79,6 @@ def test_a_decisive_other_anchor_contradicts_the_commit():
 
 
 def test_an_infeasible_commit_is_left_with_a_reason():
-    out = _run([COMMIT, COMMIT, DEFER], [A, A, A], c_held=[1.0, 0.1, 1.0])
+    out = _run([COMMIT, COMMIT, DEFER], [A, A, A], c_winner=[1.0, 0.1, 1.0])
     assert list(out.state) == [COMMIT, DEFER, DEFER]
     assert REASONS[int(out.reason[1])] == "commit infeasible"

@@ -51,6 +51,7 @@ FAULTS = {
 }
 POLICIES = (
     "ours",
+    "paper",
     "no_probe",
     "consensus_only",
     "ours_b2_d1",

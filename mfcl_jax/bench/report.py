@@ -118,7 +118,12 @@ def risk_coverage(runs: pd.DataFrame, policies) -> pd.DataFrame:
 
 
 def _knob_label(pol: str, knob: dict, g) -> str:
-    if pol in ("ours", "no_probe", "consensus_only"):
+    if pol == "ours":
+        return (
+            f"b_min={knob.get('b_min')}, delta_min={knob.get('delta_min')}, "
+            f"margin={knob.get('cert_margin')}"
+        )
+    if pol in ("paper", "no_probe", "consensus_only"):
         return f"b_min={knob.get('b_min')}, delta_min={knob.get('delta_min')}"
     if pol == "confidence":
         return f"ratio={knob.get('confidence_ratio')}"

@@ -30,16 +30,26 @@ __all__ = ["KNOB_SETS", "DEFAULT_SET", "Collected", "collect", "decide_and_score
 # (ours and its ablations: the floors b_min / delta_min; confidence: its ratio; support: its
 # ratio). Set DEFAULT_SET holds the defaults, used by every headline table.
 KNOB_SETS = (
-    dict(b_min=2, delta_min=1, confidence_ratio=1.05, support_ratio=1.1),
-    dict(b_min=3, delta_min=2, confidence_ratio=1.2, support_ratio=1.5),
-    dict(b_min=4, delta_min=3, confidence_ratio=1.4, support_ratio=2.0),
-    dict(b_min=5, delta_min=4, confidence_ratio=1.7, support_ratio=3.0),
-    dict(b_min=6, delta_min=5, confidence_ratio=2.0, support_ratio=4.0),
-    dict(b_min=8, delta_min=6, confidence_ratio=2.5, support_ratio=6.0),
-    dict(b_min=10, delta_min=8, confidence_ratio=3.0, support_ratio=8.0),
+    dict(b_min=2, delta_min=1, cert_margin=0.03, confidence_ratio=1.05, support_ratio=1.1),
+    dict(b_min=3, delta_min=2, cert_margin=0.05, confidence_ratio=1.2, support_ratio=1.5),
+    dict(b_min=3, delta_min=2, cert_margin=0.08, confidence_ratio=1.4, support_ratio=2.0),
+    dict(b_min=4, delta_min=3, cert_margin=0.08, confidence_ratio=1.7, support_ratio=3.0),
+    dict(b_min=5, delta_min=4, cert_margin=0.10, confidence_ratio=2.0, support_ratio=4.0),
+    dict(b_min=6, delta_min=5, cert_margin=0.12, confidence_ratio=2.5, support_ratio=6.0),
+    dict(b_min=8, delta_min=6, cert_margin=0.15, confidence_ratio=3.0, support_ratio=8.0),
 )
 DEFAULT_SET = 1
-LABEL_VERSION = "labels-v1"
+
+
+def _label_version() -> str:
+    """Cached labels are reused only while the labelling code is unchanged."""
+    from mfcl_jax.frontend import path_search
+    from mfcl_jax.score import identifiability
+
+    h = hashlib.sha1()
+    for mod in (identifiability, path_search):
+        h.update(Path(mod.__file__).read_bytes())
+    return h.hexdigest()[:12]
 
 
 def _log(cfg, msg):
@@ -71,7 +81,7 @@ def _light(rec: Recording) -> Recording:
 
 
 def _digest(rec: Recording) -> str:
-    h = hashlib.sha1(LABEL_VERSION.encode())
+    h = hashlib.sha1(_label_version().encode())
     for a in (rec.seq.times, rec.seq.odometry, rec.truth.poses, rec.floorplan.walls):
         h.update(np.ascontiguousarray(a, np.float64).tobytes())
     h.update(np.float64(sum(float(np.nansum(s)) for s in rec.seq.scans)).tobytes())

@@ -102,6 +102,7 @@ def decide(
     var = policies.variants(ours)
     runs, stacked, var, n_bad = batch_inputs(cands, batch, stacked, var)
     rb = np.asarray(batch.run_building)
+    runs_per_call = max(1, min(runs_per_call, rb.shape[0]))
     maps = building_maps(floorplans, sorted(set(rb.tolist())), min_iou)
     any_map = next(iter(maps.values()))
     parts, tc, tr, compiled = [], 0.0, 0.0, None

@@ -13,8 +13,9 @@ A robot cannot act on that, so the reported state is a small machine over the pr
 * a commit is left only on contradicting evidence, reported as a typed reason:
   ``commit contradicted`` (another anchor, farther than the grouping tolerances from ``A``,
   has become decisive: the per-prefix decision commits to it) or ``commit infeasible`` (the
-  trajectory mapped by ``A`` now fails the feasibility gate: the path walks through walls or
-  out of the building). The state then becomes AMBIGUOUS (multimodal) resp. DEFER for that
+  trajectory mapped by the tracked anchor, this prefix's ``T*``, now fails the feasibility
+  gate: the path walks through walls or out of the building; a held anchor that is no
+  longer tracked is judged by the first rule). The state then becomes AMBIGUOUS (multimodal) resp. DEFER for that
   window, and the machine starts over from the next window (a new commit needs the per-prefix
   rules again).
 
@@ -30,7 +31,6 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import gate as gate_mod
 from mfcl_jax.decision import lattice
 from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, Decisions
 
@@ -54,14 +54,12 @@ def initial(dtype=jnp.float32) -> Held:
     return Held(jnp.bool_(False), jnp.zeros((3,), dtype))
 
 
-def step(held: Held, raw: Decisions, c_held, p, use_gate) -> tuple[Held, Decisions]:
+def step(held: Held, raw: Decisions, p, use_gate) -> tuple[Held, Decisions]:
     """One window.
 
     Args:
         held: the memory after the previous window.
         raw: this window's per-prefix decision (scalars).
-        c_held: ``()`` gate consistency, at this prefix, of the trajectory mapped by
-            ``held.anchor`` (ignored when nothing is held).
         p: scalar ``DecisionParams`` (grouping tolerances, ``tau_c``).
         use_gate: ``()`` bool; without the gate a commit is never ``infeasible``.
 
@@ -71,7 +69,8 @@ def step(held: Held, raw: Decisions, c_held, p, use_gate) -> tuple[Held, Decisio
     dxy, dth = se2.distance_pair(raw.anchor, held.anchor)
     near = (dxy <= p.delta_xy) & (dth <= p.delta_theta)
     tracked = jnp.where(near, raw.anchor, held.anchor)
-    infeasible = held.committed & use_gate & (c_held < p.tau_c)
+    # The tracked anchor is this prefix's T*, whose gate consistency the decision already has.
+    infeasible = held.committed & near & use_gate & (raw.c_winner < p.tau_c)
     contradicted = held.committed & ~infeasible & (raw.state == COMMIT) & ~near
     keep = held.committed & ~infeasible & ~contradicted
     state = jnp.where(
@@ -103,13 +102,7 @@ def step(held: Held, raw: Decisions, c_held, p, use_gate) -> tuple[Held, Decisio
     return held, out
 
 
-def track(raw: Decisions, maps, traj, traj_mask, window_end, p, use_gate) -> Decisions:
+def track(raw: Decisions, p, use_gate) -> Decisions:
     """The machine over every prefix of one run (``raw`` leaves have leading axis ``K``)."""
-
-    def body(held, xs):
-        d, end = xs
-        c = gate_mod.consistency_at(maps, held.anchor, traj, traj_mask, end)
-        return step(held, d, c, p, use_gate)
-
-    _, out = jax.lax.scan(body, initial(raw.anchor.dtype), (raw, window_end))
+    _, out = jax.lax.scan(lambda h, d: step(h, d, p, use_gate), initial(raw.anchor.dtype), raw)
     return out

@@ -89,8 +89,7 @@ def _decide_latest(
         k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p,
         (ug, up, uc, bm, dm), n_cap,
     )  # fmt: skip
-    c_held = gate_mod.consistency_at(maps, held.anchor, traj, traj_mask, bounds[1][k])
-    return machine.step(held, raw, c_held, p, ug)
+    return machine.step(held, raw, p, ug)
 
 
 def _grow(a: np.ndarray, axis: int, need: int, fill) -> np.ndarray:

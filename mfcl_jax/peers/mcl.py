@@ -202,8 +202,13 @@ def _filter(key, run, tp, n, n_beams, recovery, res):
             l_fast = jnp.where(first, l_avg, l_fast + tp["alpha_fast"] * (l_avg - l_fast))
             p_inj = jnp.maximum(0.0, 1.0 - jnp.exp(l_fast - l_slow))
             swap = jax.random.uniform(k_inj, (n,)) < p_inj
-            fresh_draw = mm.sample_free(jax.random.fold_in(k_inj, 1), cdf, shape, origin, res, n)
-            drawn = jnp.where(swap[:, None], fresh_draw, drawn)
+            # Fresh poses for an eighth of the cloud, reused in turn beyond that: drawing n
+            # every step would cost a third of the step, and the motion noise of the next
+            # step separates the copies of a totally lost cloud anyway.
+            cap = max(1, n // 8)
+            fresh_draw = mm.sample_free(jax.random.fold_in(k_inj, 1), cdf, shape, origin, res, cap)
+            slot = (jnp.cumsum(swap.astype(jnp.int32)) - 1) % cap
+            drawn = jnp.where(swap[:, None], fresh_draw[slot], drawn)
             # A cloud that is lost as a whole keeps a high ESS (every particle is equally
             # wrong): injection must not wait for the ESS test.
             do = do | jnp.any(swap)

@@ -128,6 +128,11 @@ def select_beams(points, mask, n_beams: int):
     return points[idx], i < n_valid
 
 
+# Particles per block of the scan model: the (block, n_beams) intermediates then stay in cache
+# (at 16384 particles unblocked, the step costs 1.6x more per particle on a 2-core CPU).
+_BLOCK = 1024
+
+
 def scan_loglik(particles, beams, beam_mask, table, origin, res: float):
     """Log-likelihood of one scan at every particle (before tempering).
 
@@ -140,6 +145,19 @@ def scan_loglik(particles, beams, beam_mask, table, origin, res: float):
     Returns:
         ``(N,)`` summed log-likelihood over the valid beams.
     """
+    n = particles.shape[0]
+    if n <= _BLOCK:
+        return _scan_loglik(particles, beams, beam_mask, table, origin, res)
+    m = -(-n // _BLOCK)
+    padded = jnp.concatenate([particles, jnp.zeros((m * _BLOCK - n, 3), particles.dtype)])
+    out = jax.lax.map(
+        lambda p: _scan_loglik(p, beams, beam_mask, table, origin, res),
+        padded.reshape(m, _BLOCK, 3),
+    )
+    return out.reshape(-1)[:n]
+
+
+def _scan_loglik(particles, beams, beam_mask, table, origin, res):
     h, w = table.shape
     c = jnp.cos(particles[:, 2:3])
     s = jnp.sin(particles[:, 2:3])
@@ -249,13 +267,14 @@ def cloud_stats(particles, weights):
         standard deviation ``sqrt(-2 ln R)`` (rad, ``R`` the mean resultant length); ``ess``
         the effective sample size ``1 / sum w^2``.
     """
-    mean = se2.mean_pose(particles, weights, axis=0)
-    d = particles[:, :2] - mean[:2]
-    std_xy = jnp.sqrt(jnp.sum(weights * jnp.sum(d * d, axis=-1)))
-    r = jnp.hypot(
-        jnp.sum(weights * jnp.cos(particles[:, 2])), jnp.sum(weights * jnp.sin(particles[:, 2]))
-    )
-    r = jnp.clip(r, 1e-12, 1.0)
+    c, s = jnp.cos(particles[:, 2]), jnp.sin(particles[:, 2])
+    mc, ms = jnp.sum(weights * c), jnp.sum(weights * s)
+    mx, my = jnp.sum(weights * particles[:, 0]), jnp.sum(weights * particles[:, 1])
+    mean = jnp.stack([mx, my, jnp.arctan2(ms, mc)])
+    # Two passes (about the mean): E|p|^2 - |E p|^2 cancels badly in float32 at 40 m.
+    dx, dy = particles[:, 0] - mx, particles[:, 1] - my
+    std_xy = jnp.sqrt(jnp.sum(weights * (dx * dx + dy * dy)))
+    r = jnp.clip(jnp.hypot(mc, ms), 1e-12, 1.0)
     std_yaw = jnp.sqrt(-2.0 * jnp.log(r))
     ess = 1.0 / jnp.sum(weights * weights)
     return mean, std_xy, std_yaw, ess

@@ -7,6 +7,7 @@ and seeds. The models follow Thrun, Burgard and Fox, *Probabilistic Robotics*, a
 * ``sample_motion``: ``sample_motion_model_odometry`` (rot1, trans, rot2, noise alpha1..4);
 * ``likelihood_table`` + ``scan_loglik``: the likelihood-field range-finder model on the
   floor plan's wall distance field, nearest-cell lookup, distances capped at ``max_dist``;
+* ``on_map``: the map prior of ``motion_model_with_map`` (a move through a wall is off-map);
 * ``low_variance_resample``: systematic resampling;
 * ``sample_free``: uniform poses over the free cells of the floor plan.
 
@@ -48,7 +49,8 @@ def sample_motion(key, particles, prev, cur, alpha):
             rotation (standard deviations ``sqrt(a1 rot^2 + a2 trans^2)`` etc., as AMCL).
 
     Returns:
-        ``(N, 3)`` moved poses. With ``alpha = 0`` this is ``p * (prev^-1 cur)`` for each ``p``.
+        ``(N, 3)`` moved poses. With ``alpha = 0`` this is ``p * (prev^-1 cur)`` for each ``p``
+        (steps under 1 cm are applied along the heading).
     """
     d = cur[:2] - prev[:2]
     trans = jnp.sqrt(jnp.sum(d * d))

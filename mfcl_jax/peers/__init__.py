@@ -1,0 +1,19 @@
+"""Peer localizers: what a robot would run instead of our selective initializer.
+
+``mcl``: AMCL-like global localization (a particle filter over the floor plan's free space),
+fed the same keyframe scans and odometry as our layer and read at the same window ends.
+"""
+
+from mfcl_jax.peers.mcl import MCLParams, MCLTrace, commits, make_mcl, run_mcl, trace_count
+from mfcl_jax.peers.mcl_batch import MCLBatch, prepare_mcl_inputs
+
+__all__ = [
+    "MCLBatch",
+    "MCLParams",
+    "MCLTrace",
+    "commits",
+    "make_mcl",
+    "prepare_mcl_inputs",
+    "run_mcl",
+    "trace_count",
+]

@@ -104,7 +104,8 @@ def test_probe_blocks_commit_while_alias_is_feasible():
     pitch, reason "competitor not ruled out"), and commits once a window sees the end wall
     that the alias would put in the wrong place, no later than the paper's probe."""
     out = evaluate_runs([run_of(probe_cands)])
-    by = {n: jax.tree.map(lambda x, i=NAMES.index(n): x[0, :, 0, i], out) for n in NAMES}
+    idx = {n: i for i, n in enumerate(NAMES)}
+    by = {n: jax.tree.map(lambda x, i=i: x[0, :, 0, i], out) for n, i in idx.items()}
     d, paper, no_probe = by["ours"], by["paper"], by["no_probe"]
     blocked = [k for k in range(K) if paper.state[k] == 1 and paper.probe_alias[k]]
     assert blocked and all(paper.kind[k] == 1 for k in blocked), paper.state.tolist()

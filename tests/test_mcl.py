@@ -12,18 +12,18 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from mfcl_jax import se2
+from mfcl_jax import windows as W
 from mfcl_jax.floorplan.scenes import get_scene
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.peers import MCLParams, commits, prepare_mcl_inputs, run_mcl, trace_count
 from mfcl_jax.peers import mcl_model as mm
 from mfcl_jax.peers.mcl import MCLTrace
-from mfcl_jax.sim import LidarParams, cast, sample_path, scan_points, simulate, travelled
-from mfcl_jax.sim import window_bounds as bounds
-from mfcl_jax.sim.recordings import scene_recordings
+from mfcl_jax.sim import LidarParams, cast, sample_path, scan_points
+from mfcl_jax.sources.simulated import simulate as scene_recordings
 
 
 def _window_ends(rec, d_s=6.0):
-    return bounds(travelled(rec.seq.odometry), d_s, 2.0)[:, 1]
+    return W.window_bounds(W.travelled(rec.seq.odometry), d_s, 2.0)[:, 1]
 
 
 @pytest.fixture(scope="module")
@@ -177,15 +177,11 @@ def test_initial_particles_are_uniform_over_the_free_cells():
 
 
 # ----------------------------------------------------------------------------- inputs
-def test_scene_recordings_are_the_scans_and_odometry_of_simulate():
-    sim = simulate("symmetric_bays", ["S1"], d_s_values=(6.0,), seeds=(0,))
+def test_window_ends_are_the_windows_of_the_one_data_path():
     (rec,) = scene_recordings("symmetric_bays", ["S1"], seeds=(0,))
-    rb = sim.runs_batch
-    n = len(rec.seq)
-    np.testing.assert_array_equal(np.asarray(rb.traj[0, :n], np.float64), rec.seq.odometry)
-    ends = np.asarray(rb.window_end[0])[np.asarray(rb.window_mask[0])]
-    np.testing.assert_array_equal(_window_ends(rec), ends)
-    np.testing.assert_allclose(rec.truth.poses, sim.truth.traj[0, :n])
+    w = W.cut(rec.seq)
+    np.testing.assert_array_equal(_window_ends(rec), w.bounds[:, 1])
+    np.testing.assert_array_equal(w.keyframes, np.arange(len(rec.seq)))
 
 
 def test_prepare_validates_indices(t1):

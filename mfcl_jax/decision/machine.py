@@ -16,8 +16,8 @@ A robot cannot act on that, so the reported state is a small machine over the pr
   trajectory mapped by the tracked anchor, this prefix's ``T*``, now fails the feasibility
   gate: the path walks through walls or out of the building; a held anchor that is no
   longer tracked is judged by the first rule). The state then becomes AMBIGUOUS
-  (multimodal) resp. DEFER for that window, and the machine starts over from the next window (a new commit needs the per-prefix
-  rules again).
+  (multimodal) resp. DEFER for that window, and the machine starts over from the next
+  window (a new commit needs the per-prefix rules again).
 
 ``step`` is shared by the batch evaluator (``lax.scan`` over the prefixes) and the streaming
 initializer (one step per window), so both report the same states.

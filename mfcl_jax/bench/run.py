@@ -67,6 +67,7 @@ class Collected:
     floorplans: list = field(default_factory=list)  # by building index
     labels: list = field(default_factory=list)  # RunLabel per run
     mcl: list = field(default_factory=list)  # per-group MCL decision frames
+    nominal_labels: dict = field(default_factory=dict)  # (family, seed, walk) -> RunLabel
     timings: dict = field(default_factory=dict)
 
     def tick(self, stage: str, seconds: float) -> None:
@@ -80,12 +81,22 @@ def _light(rec: Recording) -> Recording:
     return Recording(rec.name, rec.floorplan, light, rec.truth, rec.meta)
 
 
+# Faults that change neither the building nor the walk, only the sensor or the odometry: the
+# run's label is its nominal twin's (same true path, same walls; what the robot saw differs by
+# noise only), so it is computed once.
+SAME_GEOMETRY = ("drift", "yaw_drift", "dropout", "range_noise", "restart")
+
+
 def _digest(rec: Recording) -> str:
     h = hashlib.sha1(_label_version().encode())
     for a in (rec.seq.times, rec.seq.odometry, rec.truth.poses, rec.floorplan.walls):
         h.update(np.ascontiguousarray(a, np.float64).tobytes())
     h.update(np.float64(sum(float(np.nansum(s)) for s in rec.seq.scans)).tobytes())
     return h.hexdigest()[:20]
+
+
+def _walk_key(rec: Recording) -> tuple:
+    return (rec.meta.get("family"), rec.meta.get("seed"), rec.meta.get("walk"))
 
 
 def _labels(recs, wins, cfg, col: Collected):
@@ -95,12 +106,18 @@ def _labels(recs, wins, cfg, col: Collected):
     cache = Path(cfg.cache).expanduser() / "labels" if cfg.cache else None
     out, todo = [None] * len(recs), []
     for i, r in enumerate(recs):
+        twin = col.nominal_labels.get(_walk_key(r))
+        if r.meta.get("fault", "") in SAME_GEOMETRY and twin is not None:
+            out[i] = twin
+            continue
         f = cache / f"{_digest(r)}.json" if cache else None
         if f is not None and f.is_file():
             d = json.loads(f.read_text())
             d["identifiable_k"] = np.asarray(d["identifiable_k"], bool)
             d["alternative"] = tuple(d["alternative"]) if d["alternative"] else None
             out[i] = RunLabel(**d)
+            if r.meta.get("fault", "") == "":
+                col.nominal_labels[_walk_key(r)] = out[i]
         else:
             todo.append(i)
     fields = {}
@@ -108,12 +125,16 @@ def _labels(recs, wins, cfg, col: Collected):
     def fields_of(rec):
         key = id(rec.floorplan)
         if key not in fields:
-            fields[key] = ps.plan_fields(rec.floorplan.rasterize())
+            r = rec.floorplan.rasterize()
+            shape = tuple(-(-n // 128) * 128 for n in r.shape)  # few buckets: few compiles
+            fields[key] = ps.plan_fields(r, shape=shape)
         return fields[key]
 
     if todo:
         labs = label_runs([recs[i] for i in todo], [wins[i] for i in todo], fields_of)
         for i, lab in zip(todo, labs, strict=True):
+            if recs[i].meta.get("fault", "") == "":
+                col.nominal_labels[_walk_key(recs[i])] = lab
             out[i] = lab
             if cache is not None:
                 cache.mkdir(parents=True, exist_ok=True)
@@ -136,7 +157,7 @@ def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
             bidx[id(r.floorplan)] = fe.add(r.floorplan)
             col.floorplans.append(r.floorplan)
         items.append((r.seq, w, bidx[id(r.floorplan)]))
-    wb = W.pack(items)
+    wb = W.pack(items, capacity=wp.capacity)  # one capacity: one front-end compilation
     c0, r0 = fe.compile_s, fe.run_s
     cands = fe.register(wb.submaps, wb.building)
     col.tick("front-end compile", fe.compile_s - c0)
@@ -159,7 +180,7 @@ def collect(cfg: BenchmarkConfig, groups, mcl_runner=None) -> Collected:
     from mfcl_jax.frontend.driver import FrontEnd
 
     cfg = validate(cfg)
-    fe = FrontEnd()
+    fe = FrontEnd(multiple=256)  # coarse shape buckets: few compilations for many buildings
     col = Collected()
     for name, make in groups:
         t0 = time.perf_counter()

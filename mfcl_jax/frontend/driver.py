@@ -64,8 +64,8 @@ class FrontEnd:
         """Features of building ``b`` in its shape bucket (cached until ``release``)."""
         if b not in self._feats:
             kw = registry.common_shape([self.floorplans[b]], multiple=self.multiple)
-            kw["n_rooms"] = _pow2(kw["n_rooms"], 8)
-            kw["corner_capacity"] = _pow2(kw["corner_capacity"], 64)
+            kw["n_rooms"] = _pow2(kw["n_rooms"], 32)
+            kw["corner_capacity"] = _pow2(kw["corner_capacity"], 256)
             self._feats[b] = registry.build_features(self.floorplans[b], self.params, **kw)
         return self._feats[b]
 

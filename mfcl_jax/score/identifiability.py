@@ -35,7 +35,6 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax import se2
 from mfcl_jax.frontend import path_search as ps
 from mfcl_jax.score.decisions import pose_at
 from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
@@ -53,6 +52,8 @@ class LabelParams:
     search_free: int = 2048
     search_crop: float = 12.0  # the search uses returns within this range (m) of the sensor
     keep_ratio: float = 0.6  # alternatives scoring below this share of the best are dropped
+    max_alternatives: int = 23  # the strongest distinct alternatives examined per run
+    scan_stride: int = 2  # every second keyframe is scored (consecutive ones nearly repeat)
     drop_hit: float = 0.12
     rise_through: float = 0.03
     smooth: int = 3
@@ -85,7 +86,8 @@ def _scan_arrays(seq, kf, truth, p: LabelParams):
             free[i, 0], fok[i, 0] = P[i, :2], True
             continue
         s = s[np.linspace(0, len(s) - 1, min(nb, len(s))).round().astype(int)]
-        w = np.asarray(se2.apply(P[i], s), np.float64)
+        c, si = np.cos(P[i, 2]), np.sin(P[i, 2])
+        w = np.stack([c * s[:, 0] - si * s[:, 1], si * s[:, 0] + c * s[:, 1]], 1) + P[i, :2]
         pts[i, : len(w)], pok[i, : len(w)] = w, True
         q = P[i, :2] + np.asarray(p.ray_fracs)[:, None, None] * (w - P[i, :2])[None]
         q = np.concatenate([P[i, None, :2], q.reshape(-1, 2)])
@@ -114,12 +116,29 @@ def _dedupe(G, xy: float = 0.3, deg: float = 2.0):
     """Drops placements within (``xy`` m, ``deg``) of an earlier one (row 0, the truth, stays)."""
     keep = []
     for g in G:
-        if all(
-            np.hypot(*(g[:2] - k[:2])) > xy or abs(se2.wrap(g[2] - k[2])) > np.deg2rad(deg)
-            for k in keep
-        ):
+        if not keep:
+            keep.append(g)
+            continue
+        k = np.asarray(keep)
+        dth = np.abs(np.angle(np.exp(1j * (g[2] - k[:, 2]))))
+        if np.all((np.hypot(*(g[:2] - k[:, :2]).T) > xy) | (dth > np.deg2rad(deg))):
             keep.append(g)
     return np.asarray(keep, np.float64)
+
+
+def _evaluate(G, pts, pok, P, fields, p):
+    """Per-scan statistics of the placements ``G``, padded to fixed buckets (placements to
+    ``max_alternatives + 1``, scans to a power of two) so every run shares compilations."""
+    n, s = len(G), len(pts)
+    gc = p.max_alternatives + 1
+    sc = 1 << max(7, (s - 1).bit_length())
+    Gp = np.concatenate([G, np.repeat(G[:1], gc - n, 0)])
+    pad = ((0, sc - s), (0, 0), (0, 0))
+    pts_p = np.pad(pts, pad)
+    pok_p = np.pad(pok, ((0, sc - s), (0, 0)))
+    sen = np.pad(P[:, :2], ((0, sc - s), (0, 0)))
+    out = ps.evaluate_placements(jnp.asarray(Gp, jnp.float32), pts_p, pok_p, sen, fields)
+    return tuple(np.asarray(a, np.float64)[:n, :s] for a in out)
 
 
 def _smooth(x, n):
@@ -151,9 +170,12 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             out.append(RunLabel(False, None, np.zeros(0, bool), 0, None))
             continue
         fields = fields_of(rec)
-        pts, pok, free, fok, P = _scan_arrays(rec.seq, w.keyframes, rec.truth, p)
-        ends = w.bounds[:, 1]
-        cands = []
+        kf = w.keyframes[:: p.scan_stride]
+        pts, pok, free, fok, P = _scan_arrays(rec.seq, kf, rec.truth, p)
+        # window ends as indices into the strided keyframes (the last one at or before each end)
+        ends = np.searchsorted(np.arange(len(w.keyframes))[:: p.scan_stride], w.bounds[:, 1],
+                               side="right") - 1  # fmt: skip
+        cands, scores = [], []
         for k in _prefixes(K):
             e = ends[k - 1] + 1
             near = pok[:e] & (np.linalg.norm(pts[:e] - P[:e, None, :2], axis=-1) <= p.search_crop)
@@ -161,16 +183,23 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             cf, cfm = _subsample(free[:e], fok[:e], p.search_free, rng)
             c = cp[cm].mean(0) if cm.any() else P[0, :2]
             ext = float(np.max(np.abs(np.concatenate([cp[cm], cf[cfm]]) - c))) if cm.any() else 1
-            n_img = int(-(-(2 * ext + 2) / fields.c_res // 32) * 32)
+            # image side in buckets of 64 cells: a handful of compilations for every run
+            n_img = int(-(-(2 * ext + 2) / fields.c_res // 64) * 64)
             g, sc = ps.search(cp - c, cm, cf - c, cfm, fields, p.search, n_img)
             g, sc = np.asarray(g, np.float64), np.asarray(sc)
-            shift = np.array([-c[0], -c[1], 0.0])
             good = np.isfinite(sc) & (sc >= p.keep_ratio * np.max(sc, initial=0.0))
-            for gi in g[good]:
-                cands.append(np.asarray(se2.compose(gi, shift), np.float64))
-        G = _dedupe(np.concatenate([np.zeros((1, 3)), np.asarray(cands).reshape(-1, 3)]))
-        hit, thr, pb = (np.asarray(a, np.float64) for a in ps.evaluate_placements(
-            jnp.asarray(G, jnp.float32), pts, pok, P[:, :2], fields))  # fmt: skip
+            g, sc = g[good], sc[good]
+            good = np.argsort(-sc)
+            # g maps (x - c) into B: as a motion of B, rotate about c then translate
+            cg, sg = np.cos(g[good, 2]), np.sin(g[good, 2])
+            tx = g[good, 0] - (cg * c[0] - sg * c[1])
+            ty = g[good, 1] - (sg * c[0] + cg * c[1])
+            cands.append(np.stack([tx, ty, g[good, 2]], 1))
+            scores.append(sc[good])
+        order = np.argsort(-np.concatenate(scores), kind="stable")  # strongest first
+        G = _dedupe(np.concatenate([np.zeros((1, 3)), np.concatenate(cands)[order]]))
+        G = G[: p.max_alternatives + 1]
+        hit, thr, pb = _evaluate(G, pts, pok, P, fields, p)
         hit, thr = _smooth(hit, p.smooth), _smooth(thr, p.smooth)
         worse = (
             (hit[1:] < hit[:1] - p.drop_hit)
@@ -178,10 +207,12 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             | ((pb[1:] >= 0.5) & (pb[:1] < 0.5))
         )  # (A, S)
         contradicted = np.maximum.accumulate(worse, axis=1)  # by some scan so far
-        moved = np.asarray(se2.compose(G[1:, None, :], P[None]), np.float64)  # (A, S, 3)
-        dxy = np.hypot(*(moved[..., :2] - P[None, :, :2]).transpose(2, 0, 1))
+        ca, sa = np.cos(G[1:, 2])[:, None], np.sin(G[1:, 2])[:, None]
+        mx = ca * P[None, :, 0] - sa * P[None, :, 1] + G[1:, 0:1]  # (A, S): g applied to P
+        my = sa * P[None, :, 0] + ca * P[None, :, 1] + G[1:, 1:2]
+        dxy = np.hypot(mx - P[None, :, 0], my - P[None, :, 1])
         far = np.maximum.accumulate(dxy, axis=1) > CORRECT_XY
-        turned = np.abs(se2.wrap(G[1:, 2]))[:, None] > np.deg2rad(CORRECT_YAW_DEG)
+        turned = np.abs(np.angle(np.exp(1j * G[1:, 2])))[:, None] > np.deg2rad(CORRECT_YAW_DEG)
         alt = (far | turned) & ~contradicted  # (A, S): a live alternative after scan s
         ident = ~np.any(alt[:, ends], axis=0)  # (K,)
         later = np.minimum.accumulate(ident[::-1])[::-1]

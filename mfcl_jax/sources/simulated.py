@@ -31,6 +31,8 @@ from mfcl_jax.sources.sequence import ScanSequence
 
 __all__ = ["simulate", "simulate_walk", "simulate_dataset", "run_key"]
 
+CHUNK = 512  # scans per ray-casting call
+
 
 def run_key(seed: int, scene: str, traj: str) -> jax.Array:
     """The PRNG key of one (scene, trajectory, seed) run."""
@@ -130,13 +132,29 @@ def simulate(
         ]
     )
     n_scan = len(all_poses)
-    s_cap = bucket(n_scan, minimum=256)
-    m_cap = bucket(len(segs), minimum=64)
+    # Fixed shapes: scans in chunks of CHUNK, surfaces in a power-of-two bucket, so every
+    # building and run length shares a handful of compilations.
+    m_cap = bucket(len(segs), minimum=256)
     seg_pad = np.zeros((m_cap, 2, 2))
     seg_pad[: len(segs)] = segs
     seg_valid = np.arange(m_cap) < len(segs)
+    s_cap = -(-n_scan // CHUNK) * CHUNK
     keys_pad = jnp.concatenate([all_keys, jnp.zeros((s_cap - n_scan, 2), all_keys.dtype)])
-    ranges = cast(_pad_rows(all_poses, s_cap), seg_pad, params.lidar, keys_pad, seg_valid)
+    poses_pad = _pad_rows(all_poses, s_cap)
+    ranges = np.concatenate(
+        [
+            np.asarray(
+                cast(
+                    poses_pad[a : a + CHUNK],
+                    seg_pad,
+                    params.lidar,
+                    keys_pad[a : a + CHUNK],
+                    seg_valid,
+                )
+            )  # fmt: skip
+            for a in range(0, s_cap, CHUNK)
+        ]
+    )
     pts = np.asarray(scan_points(ranges), np.float64)[:n_scan]
     offsets = np.concatenate([[0], np.cumsum(counts)])
 

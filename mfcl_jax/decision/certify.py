@@ -82,20 +82,23 @@ def chain(k, start, end, valid, n_slots: int):
     return order.astype(jnp.int32), take[order]
 
 
-def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visible, p):
+def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visible, x_now):
     """The competitor anchors at one prefix.
 
     Args:
         t_star: ``(3,)``; aliases: ``(A, 3)`` with ``aliases_ok``; groups: ``(G, 3)`` other
             groups' anchors with ``groups_ok``; H, score, visible: ``(K, J, ...)`` candidates of
-            the prefix; p: ``DecisionParams`` (grouping tolerances).
+            the prefix; x_now: ``(3,)`` the odometry pose at the prefix.
 
     Returns:
         ``(anchors (A + G + K, 3), ok (A + G + K,))``: each window's runner-up is its best
-        visible candidate outside the winner's grouping tolerances.
+        visible candidate that places the robot (now) farther than ``CORRECT`` from where
+        ``T*`` does: a candidate 1-1.5 m off shares the winner's consensus group, yet it is a
+        different answer, so it must be ruled out like any other.
     """
-    dxy, dth = se2.distance_pair(H, t_star)
-    outside = visible & ((dxy > p.delta_xy) | (dth > p.delta_theta))
+    here = se2.compose(t_star, x_now)
+    dxy, dth = se2.distance_pair(se2.compose(H, x_now), here)
+    outside = visible & ((dxy > CORRECT[0]) | (dth > CORRECT[1]))
     s = jnp.where(outside, score, -jnp.inf)
     j = jnp.argmax(s, axis=1)
     runner = jnp.take_along_axis(H, j[:, None, None], axis=1)[:, 0]

@@ -239,7 +239,7 @@ def certify_core(k, core: PrefixCore, H, score, X, evidence, bounds, maps, p, n_
     others = (jnp.arange(kk) < g.n_groups) & (jnp.arange(kk) != g.winner)
     pr = core.probe_result
     comp, ok = certify.competitors(
-        g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, core.admitted, p
+        g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, core.admitted, X[k]
     )
     return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots)
 

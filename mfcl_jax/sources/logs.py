@@ -38,12 +38,13 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from mfcl_jax.sim.trajectory import odometry, travelled
+from mfcl_jax.sim.trajectory import odometry
 from mfcl_jax.sources.bagtruth import bag_ground_truth, carry, truth_at_scans
 from mfcl_jax.sources.heldout import default_cache_dir, file_digest, held_out_map
 from mfcl_jax.sources.logwindows import plan_windows
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import ScanSequence
+from mfcl_jax.windows import travelled
 
 __all__ = [
     "LOGS",

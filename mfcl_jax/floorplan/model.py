@@ -25,6 +25,9 @@ __all__ = [
 ]
 
 DEFAULT_WALL_THICKNESS = 0.15
+# Wall corners (``Floorplan.corners``): boundary simplification (m) and the most kept.
+CORNER_SIMPLIFY = 0.05
+MAX_CORNERS = 512
 # A door must come this close (m) to a room's polygon to count as touching it; rooms are
 # usually drawn to the wall faces, doors across the wall centre line.
 DOOR_TOUCH_TOL = 0.5
@@ -206,21 +209,28 @@ class Floorplan:
 
     @cached_property
     def corners(self) -> tuple[np.ndarray, np.ndarray]:
-        """Wall-surface corners with their two edge directions.
+        """Wall-surface corners with their two edge directions, the most salient first.
+
+        Corners are read off the wall-solid boundary simplified to ``CORNER_SIMPLIFY`` m (an
+        occupancy map's cell staircases and scan jitter are not corners). Near-straight
+        vertices (within 20 deg of 180) are dropped. A corner's salience is its shorter arm
+        (edge length, m); at most ``MAX_CORNERS`` are kept, the most salient: a SLAM map's
+        furniture blobs give thousands of tiny corners that would drown the structural ones
+        in the front-end's vote budget. Plans with fewer corners keep them all.
 
         Returns:
             ``(points (C, 2), directions (C, 2))``: each corner's position and the angles (rad)
-            of its two boundary edges, pointing away from the corner. Near-straight vertices
-            (within 20 deg of 180) are dropped.
+            of its two boundary edges, pointing away from the corner.
         """
-        pts, dirs = [], []
-        for ring in _rings(self.wall_solid):
+        pts, dirs, sal = [], [], []
+        for ring in _rings(self.wall_solid.simplify(CORNER_SIMPLIFY)):
             xy = np.asarray(ring.coords)[:-1]
             n = len(xy)
             for i in range(n):
                 p, a, b = xy[i], xy[i - 1], xy[(i + 1) % n]
                 da, db = a - p, b - p
-                if np.linalg.norm(da) < 1e-6 or np.linalg.norm(db) < 1e-6:
+                la, lb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+                if la < 1e-6 or lb < 1e-6:
                     continue
                 ang_a, ang_b = math.atan2(da[1], da[0]), math.atan2(db[1], db[0])
                 between = abs((ang_a - ang_b + math.pi) % (2 * math.pi) - math.pi)
@@ -228,7 +238,13 @@ class Floorplan:
                     continue
                 pts.append(p)
                 dirs.append((ang_a, ang_b))
-        return np.asarray(pts, float).reshape(-1, 2), np.asarray(dirs, float).reshape(-1, 2)
+                sal.append(min(la, lb))
+        pts = np.asarray(pts, float).reshape(-1, 2)
+        dirs = np.asarray(dirs, float).reshape(-1, 2)
+        if len(pts) > MAX_CORNERS:
+            keep = np.sort(np.argsort(-np.asarray(sal), kind="stable")[:MAX_CORNERS])
+            pts, dirs = pts[keep], dirs[keep]
+        return pts, dirs
 
     @cached_property
     def room_centroids(self) -> np.ndarray:

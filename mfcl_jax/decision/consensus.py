@@ -6,7 +6,10 @@
 * Grouping is leader clustering: champions are visited in a fixed order (score descending,
   then window index); each joins the existing group whose *leader* (first member) is within
   both ``delta_xy`` and ``delta_theta``, the nearest in planar distance among several, or
-  opens a new group. Distance to the group anchor, never chaining through members; the two
+  opens a new group. The tolerances grow with the odometric distance travelled between the
+  member's window and the leader's (``drift_xy`` per metre, ``drift_theta`` rad per metre):
+  odometry drifts, so one place's anchor estimated 40 m apart differs by more than a window's
+  noise. Distance to the group anchor, never chaining through members; the two
   tolerances are tested separately, never mixed into one norm.
 * ``B_m`` counts INDEPENDENT evidence: the largest number of the group's champions whose
   windows share no scan (windows are intervals of keyframes; the greedy earliest-ending choice
@@ -90,34 +93,45 @@ def champions(H, score, admitted) -> Champions:
     return Champions(pose, jnp.where(has, best, jnp.zeros_like(best)), has, j)
 
 
-def leader_groups(pose, weight, has, delta_xy, delta_theta):
+def leader_groups(pose, weight, has, delta_xy, delta_theta, s=None, grow_xy=0.0, grow_th=0.0):
     """Leader clustering of ``pose (M, 3)`` visited by ``weight`` descending (ties: index).
+
+    With ``s (M,)`` (odometric travelled distance of each pose's window) the tolerances grow
+    with the distance travelled between a pose and the leader it is compared with:
+    ``delta_xy + grow_xy |s - s_leader|`` and ``delta_theta + grow_th |s - s_leader|``, so
+    anchors estimated far apart along the path, which odometry drift separates, stay together.
 
     Returns:
         ``(assign (M,) int32, leaders (M, 3), n_groups ())``.
     """
     pose, weight, has = jnp.asarray(pose), jnp.asarray(weight), jnp.asarray(has, bool)
     m = pose.shape[0]
+    s = jnp.zeros(m, pose.dtype) if s is None else jnp.asarray(s, pose.dtype)
     key = jnp.where(has, weight, -jnp.inf)
     order = jnp.lexsort((jnp.arange(m), -key))
     slots = jnp.arange(m)
 
     def body(i, carry):
-        assign, leaders, ng = carry
+        assign, leaders, lead_s, ng = carry
         c = order[i]
         p = pose[c]
         dxy, dth = se2.distance_pair(leaders, p)
-        within = (dxy <= delta_xy) & (dth <= delta_theta) & (slots < ng)
+        ds = jnp.abs(lead_s - s[c])
+        within = (dxy <= delta_xy + grow_xy * ds) & (dth <= delta_theta + grow_th * ds)
+        within &= slots < ng
         join = jnp.argmin(jnp.where(within, dxy, jnp.inf)).astype(jnp.int32)
         found = jnp.any(within)
         g = jnp.where(found, join, ng)
         g = jnp.where(has[c], g, -1)
         new = has[c] & ~found
-        leaders = jnp.where(new & (slots == ng)[:, None], p, leaders)
-        return assign.at[c].set(g), leaders, ng + new.astype(jnp.int32)
+        here = new & (slots == ng)
+        leaders = jnp.where(here[:, None], p, leaders)
+        lead_s = jnp.where(here, s[c], lead_s)
+        return assign.at[c].set(g), leaders, lead_s, ng + new.astype(jnp.int32)
 
-    init = (jnp.full((m,), -1, jnp.int32), jnp.zeros_like(pose), jnp.int32(0))
-    return jax.lax.fori_loop(0, m, body, init)
+    init = (jnp.full((m,), -1, jnp.int32), jnp.zeros_like(pose), jnp.zeros_like(s), jnp.int32(0))
+    assign, leaders, _, ng = jax.lax.fori_loop(0, m, body, init)
+    return assign, leaders, ng
 
 
 def disjoint_count(onehot, start, end):
@@ -144,7 +158,9 @@ def disjoint_count(onehot, start, end):
     return n
 
 
-def group(ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None) -> Groups:
+def group(
+    ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None, s=None, grow=(0.0, 0.0)
+) -> Groups:
     """Groups champions and summarises consensus (see the module docstring).
 
     Args:
@@ -154,9 +170,13 @@ def group(ch: Champions, delta_xy, delta_theta, recent=0, start=None, end=None) 
             (traced; ``<= 0``: all of them).
         start, end: ``(K,)`` keyframe bounds of the windows; ``None`` treats every window as
             disjoint from the others (``B_m`` = member count).
+        s: ``(K,)`` travelled distance at each window's end, and ``grow = (grow_xy,
+            grow_theta)`` the tolerances' growth per metre between windows (odometry drift).
     """
     k = ch.pose.shape[0]
-    assign, _, ng = leader_groups(ch.pose, ch.score, ch.has, delta_xy, delta_theta)
+    assign, _, ng = leader_groups(
+        ch.pose, ch.score, ch.has, delta_xy, delta_theta, s, grow[0], grow[1]
+    )
     onehot = (assign[None, :] == jnp.arange(k)[:, None]) & ch.has[None, :]  # (G, K)
     size = jnp.sum(onehot, axis=1).astype(jnp.int32)
     if start is None:

@@ -90,6 +90,11 @@ class DecisionParams:
     below it); ``confidence_ratio`` and ``support_ratio`` parametrise the baselines.
     ``recent`` is how many of the winner's most recent champions are averaged into the
     reported anchor ``T*`` (``<= 0``: all of them, the paper's ``T*``); see ``consensus``.
+    Beyond the paper: ``cert_margin`` (a knob) is the verification-score advantage by which a
+    window contradicts or favours an explanation and ``cert_sigma`` the score's kernel width
+    (``certify``); ``drift_xy`` (fraction of the distance) and ``drift_theta`` (rad per metre)
+    widen the grouping tolerances with the distance travelled between two champions' windows
+    (``consensus``): an odometry of that quality keeps one place's anchors in one group.
     """
 
     delta_xy: float = 1.5
@@ -108,6 +113,8 @@ class DecisionParams:
     recent: float = 3.0
     cert_margin: float = 0.05
     cert_sigma: float = 0.07
+    drift_xy: float = 0.02
+    drift_theta: float = float(np.deg2rad(0.1))
 
     def replace(self, **kw) -> DecisionParams:
         return replace(self, **kw)
@@ -215,7 +222,13 @@ def prefix_core(
     max_score = jnp.where(any_anchor, max_score, 0.0)
     admitted = visible & (score >= p.score_floor) & ((cons >= p.tau_c) | ~use_gate)
     ch = consensus.champions(H, score, admitted)
-    g = consensus.group(ch, p.delta_xy, p.delta_theta, p.recent, wstart, wend)
+    step = jnp.linalg.norm(jnp.diff(traj[:, :2], axis=0), axis=-1)
+    s_traj = jnp.concatenate([jnp.zeros(1, traj.dtype), jnp.cumsum(jnp.where(traj_mask[1:], step,
+                                                                              0.0))])  # fmt: skip
+    g = consensus.group(
+        ch, p.delta_xy, p.delta_theta, p.recent, wstart, wend, s_traj[wend],
+        (p.drift_xy, p.drift_theta),
+    )  # fmt: skip
     live = jnp.arange(kk) < g.n_groups
     fit = lattice.prepare(g.anchor, g.winner, maps.offsets, p.eps_t)
     all_ok, all_tau = lattice.detect_from(

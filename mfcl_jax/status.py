@@ -38,9 +38,9 @@ STATE_TEXT = {
 # status line, one plain sentence for the help).
 REASON_TEXT = {
     "unsaturated": (
-        "fewer than two rooms covered yet",
-        "Under the best placement the walk so far lies inside fewer than two rooms, too "
-        "little of the building to tell similar places apart: walk into another room.",
+        "too little seen yet",
+        "Fewer than b_min (3) stretches of the walk that share no scan have a registration: "
+        "too little of the building seen to tell similar places apart. Keep moving.",
     ),
     "winner infeasible": (
         "the best placement runs the path through walls",
@@ -77,23 +77,46 @@ REASON_TEXT = {
         "A baseline policy's commit rule has not fired yet (baselines only; mfcl localize "
         "runs the selective policy).",
     ),
+    "commit contradicted": (
+        "another place became decisive",
+        "The layer had committed, but another placement, more than the grouping tolerance "
+        "away, has since become decisive: the commit is withdrawn (AMBIGUOUS) and the next "
+        "windows decide afresh.",
+    ),
+    "commit infeasible": (
+        "the committed placement runs the path through walls",
+        "The layer had committed, but the tracked placement now puts the travelled path "
+        "through walls or out of the building: the commit is withdrawn (DEFER).",
+    ),
+    "competitor not ruled out": (
+        "another placement fits the scans as well",
+        "The best placement is decisive by consensus, but re-scoring the windows' scans "
+        "under a competing placement (a symmetric copy, another group, a window's runner-up) "
+        "finds no window that contradicts it: both explain what the robot saw.",
+    ),
+    "winner contradicted": (
+        "the scans favour another placement",
+        "Re-scoring the windows' scans favours a competing placement over the best one in "
+        "some window and never the other way: the consensus winner is not trusted.",
+    ),
 }
 
 TERM_TEXT = {
     "pose": "COMMIT lines: the robot's current pose in the plan frame, T* X_k (x, y in "
     "metres, heading in degrees counter-clockwise from the plan's x axis).",
-    "B1": "support of the best placement: how many windows' best registrations agree with "
-    "it (the evidence for it).",
-    "B2": "support of the runner-up, a different placement (the evidence against).",
-    "margin": "B1 - B2. A COMMIT needs B1 >= b_min (3) and margin >= delta_min (2); then a "
-    "probe checks that no symmetric copy of the placement is still feasible.",
+    "B1": "support of the best placement: how many windows that share no scan have their "
+    "best registration agree with it (independent evidence for it).",
+    "B2": "support of the runner-up, a different placement, counted the same way (the "
+    "evidence against).",
+    "margin": "B1 - B2. A COMMIT needs B1 >= b_min (3) and margin >= delta_min (2); then "
+    "every competing placement (symmetric copies, other groups, each window's runner-up) must "
+    "be contradicted by the scans of some window and favoured by none.",
     "tau": "the period (tx, ty in metres) of a repeated layout: the robot's position is known "
     "only up to whole multiples of tau (AMBIGUOUS translation).",
 }
 
 EXAMPLE = (
-    "k=  1 t=     12.00 DEFER     unsaturated (fewer than two rooms covered yet)  "
-    "[B1=1 B2=0 margin=1]",
+    "k=  1 t=     12.00 DEFER     unsaturated (too little seen yet)  [B1=1 B2=0 margin=1]",
     "k=  3 t=     20.00 AMBIGUOUS repeated layout: position known up to multiples of "
     "tau=(7.30, 0.00) m  [B1=3 B2=0 margin=3]",
     "k= 11 t=     48.00 COMMIT    robot at x=21.40 m, y=6.02 m, heading 87.5 deg  "

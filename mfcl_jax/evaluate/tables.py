@@ -110,8 +110,11 @@ def selective_metrics(firsts: pd.DataFrame, policies=FORCED) -> pd.DataFrame:
 
 
 def ablation(firsts: pd.DataFrame) -> pd.DataFrame:
-    """Gate-only, consensus-only, no-probe and the full layer on the same configurations."""
-    return selective_metrics(firsts, policies=("gate_only", "consensus_only", "no_probe", "ours"))
+    """Gate-only, consensus-only, no-probe, the paper's layer (probe without the scan
+    certification) and ours on the same configurations."""
+    return selective_metrics(
+        firsts, policies=("gate_only", "consensus_only", "no_probe", "paper", "ours")
+    )
 
 
 def sensitivity(firsts: pd.DataFrame) -> pd.DataFrame:

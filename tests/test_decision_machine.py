@@ -47,7 +47,10 @@ def _run(states, anchors, c_winner=None):
     raw = _raw(states, anchors)
     if c_winner is not None:
         raw = dataclasses.replace(raw, c_winner=jnp.asarray(c_winner, jnp.float32))
-    return jax.tree.map(np.asarray, machine.track(raw, P, jnp.bool_(True)))
+    k = len(states)
+    H, score, mask = jnp.zeros((k, 1, 3)), jnp.zeros((k, 1)), jnp.zeros((k, 1), bool)
+    out = machine.track(raw, H, score, mask, jnp.zeros((k, 3)), P, jnp.bool_(True))
+    return jax.tree.map(np.asarray, out)
 
 
 A = np.array([10.0, 5.0, 0.3])
@@ -82,3 +85,18 @@ def test_an_infeasible_commit_is_left_with_a_reason():
     out = _run([COMMIT, COMMIT, DEFER], [A, A, A], c_winner=[1.0, 0.1, 1.0])
     assert list(out.state) == [COMMIT, DEFER, DEFER]
     assert REASONS[int(out.reason[1])] == "commit infeasible"
+
+
+def test_the_newest_window_candidate_tracks_a_held_anchor_without_champions():
+    """After the commit the per-prefix winner may vanish (no champion); the newest window's
+    candidate near the held anchor still carries the drift."""
+    k = 4
+    states = [COMMIT, DEFER, DEFER, DEFER]
+    raw = _raw(states, [A, np.zeros(3), np.zeros(3), np.zeros(3)])
+    drifted = np.stack([A + [0.1 * i, 0.0, 0.01 * i] for i in range(k)])
+    H = jnp.asarray(drifted[:, None, :], jnp.float32)
+    out = machine.track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), jnp.zeros((k, 3)), P,
+                        jnp.bool_(True))  # fmt: skip
+    out = jax.tree.map(np.asarray, out)
+    assert list(out.state) == [COMMIT] * 4
+    np.testing.assert_allclose(out.anchor, drifted, atol=1e-5)

@@ -133,7 +133,7 @@ def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int 
     raw = f(params, cores, certs)  # (S, K, V0, ...)
 
     def held(p, d, ug):  # the commit machine over the prefixes of one (set, variant)
-        return machine.track(d, p, ug)
+        return machine.track(d, r.H, r.score, mask, r.X, p, ug)
 
     h = jax.vmap(held, in_axes=(None, 1, 0), out_axes=1)  # variants
     ours = jax.vmap(h, in_axes=(0, 0, None))(params, raw, var.use_gate)  # sets

@@ -8,8 +8,11 @@ A robot cannot act on that, so the reported state is a small machine over the pr
 * before the first commit the reported decision is the per-prefix one (DEFER / AMBIGUOUS /
   COMMIT; the paper's reversible AMBIGUOUS -> COMMIT is kept);
 * once committed to ``A``, the state stays COMMIT. The anchor is tracked under odometry drift:
-  whenever the per-prefix winner ``T*`` lies within the grouping tolerances of ``A`` (the same
-  place, re-estimated from the latest champions), ``A <- T*``; otherwise ``A`` is held;
+  when the newest window has a candidate that places the robot within ``TRACK`` (0.5 m, 3
+  deg) of where ``A`` does, ``A`` becomes the best such candidate's anchor (the front-end's
+  registration of the latest scans: the most current estimate); otherwise, when the
+  per-prefix winner ``T*`` lies within the grouping tolerances of ``A`` (the same place,
+  re-estimated from recent champions), ``A <- T*``; otherwise ``A`` is held;
 * a commit is left only on contradicting evidence, reported as a typed reason:
   ``commit contradicted`` (another anchor, farther than the grouping tolerances from ``A``,
   has become decisive: the per-prefix decision commits to it) or ``commit infeasible`` (the
@@ -25,6 +28,7 @@ initializer (one step per window), so both report the same states.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import jax
@@ -37,6 +41,7 @@ from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, Decisions
 __all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "initial", "step", "track"]
 
 CONTRADICTED, INFEASIBLE = 9, 10  # keys of state.REASONS
+TRACK = (0.5, math.radians(3.0))  # a newest candidate this close to the held anchor tracks it
 
 
 @dataclass(frozen=True)
@@ -54,12 +59,25 @@ def initial(dtype=jnp.float32) -> Held:
     return Held(jnp.bool_(False), jnp.zeros((3,), dtype))
 
 
-def step(held: Held, raw: Decisions, p, use_gate) -> tuple[Held, Decisions]:
+def _newest(held_anchor, newest):
+    """The newest window's best candidate that places the robot within ``TRACK`` of where
+    the held anchor does: ``(anchor (3,), found ())``."""
+    H, score, mask, x = newest
+    here = se2.compose(held_anchor, x)
+    dxy, dth = se2.distance_pair(se2.compose(H, x[None]), here[None])
+    close = mask & (dxy <= TRACK[0]) & (dth <= TRACK[1])
+    j = jnp.argmax(jnp.where(close, score, -jnp.inf))
+    return H[j], jnp.any(close)
+
+
+def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisions]:
     """One window.
 
     Args:
         held: the memory after the previous window.
         raw: this window's per-prefix decision (scalars).
+        newest: ``(H (J, 3), score (J,), mask (J,), x (3,))`` the newest window's candidate
+            anchors and its odometry pose, for tracking.
         p: scalar ``DecisionParams`` (grouping tolerances, ``tau_c``).
         use_gate: ``()`` bool; without the gate a commit is never ``infeasible``.
 
@@ -68,7 +86,8 @@ def step(held: Held, raw: Decisions, p, use_gate) -> tuple[Held, Decisions]:
     """
     dxy, dth = se2.distance_pair(raw.anchor, held.anchor)
     near = (dxy <= p.delta_xy) & (dth <= p.delta_theta)
-    tracked = jnp.where(near, raw.anchor, held.anchor)
+    cand, found = _newest(held.anchor, newest)
+    tracked = jnp.where(found, cand, jnp.where(near, raw.anchor, held.anchor))
     # The tracked anchor is this prefix's T*, whose gate consistency the decision already has.
     infeasible = held.committed & near & use_gate & (raw.c_winner < p.tau_c)
     contradicted = held.committed & ~infeasible & (raw.state == COMMIT) & ~near
@@ -102,7 +121,14 @@ def step(held: Held, raw: Decisions, p, use_gate) -> tuple[Held, Decisions]:
     return held, out
 
 
-def track(raw: Decisions, p, use_gate) -> Decisions:
-    """The machine over every prefix of one run (``raw`` leaves have leading axis ``K``)."""
-    _, out = jax.lax.scan(lambda h, d: step(h, d, p, use_gate), initial(raw.anchor.dtype), raw)
+def track(raw: Decisions, H, score, mask, X, p, use_gate) -> Decisions:
+    """The machine over every prefix of one run (``raw`` leaves have leading axis ``K``;
+    ``H (K, J, 3)``, ``score``, ``mask (K, J)`` the candidates, ``X (K, 3)`` the windows'
+    odometry poses)."""
+
+    def body(h, xs):
+        d, *newest = xs
+        return step(h, d, newest, p, use_gate)
+
+    _, out = jax.lax.scan(body, initial(raw.anchor.dtype), (raw, H, score, mask, X))
     return out

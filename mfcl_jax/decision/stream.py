@@ -89,7 +89,8 @@ def _decide_latest(
         k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p,
         (ug, up, uc, bm, dm), n_cap,
     )  # fmt: skip
-    return machine.step(held, raw, p, ug)
+    newest = (H[k], score[k], mask[k], X[k])
+    return machine.step(held, raw, newest, p, ug)
 
 
 def _grow(a: np.ndarray, axis: int, need: int, fill) -> np.ndarray:

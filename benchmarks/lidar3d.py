@@ -34,9 +34,9 @@ from mfcl_jax.io.errors import atomic_write_text
 from mfcl_jax.localizer import Localizer
 from mfcl_jax.score import format_table, score_decisions, summarize
 from mfcl_jax.sim.lidar3d import livox_mid360
-from mfcl_jax.sim.walk3d import scene_walk3d, walk3d
 from mfcl_jax.sources.cloud3d import BandParams, slice_clouds
 from mfcl_jax.sources.sequence import ScanSequence
+from mfcl_jax.sources.walk3d import scene_walk3d, walk3d
 
 OFFICE_IFC = Path("/work/shared/data/ifc/Office_A_20110811.ifc")
 SENSOR = livox_mid360(height=0.5)
@@ -65,7 +65,7 @@ def _walks(office: bool):
         yield "three_rooms", label, scene.floorplan, sensor, w, kinds
     if office and OFFICE_IFC.exists():
         from mfcl_jax.floorplan.load import load_floorplan
-        from mfcl_jax.pipeline.real import OFFICE, route
+        from mfcl_jax.study.real import OFFICE, route
 
         fp = load_floorplan(OFFICE_IFC, storey=OFFICE["storey"])
         name = "open_office_to_113"

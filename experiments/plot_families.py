@@ -7,7 +7,8 @@ import argparse
 import time
 from pathlib import Path
 
-from mfcl_jax.floorplan.families import FAMILIES, make_scene, plot_family
+from mfcl_jax.evaluate.plots_scene import plot_family
+from mfcl_jax.floorplan.families import FAMILIES, make_scene
 
 
 def main(argv=None) -> None:

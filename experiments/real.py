@@ -1,8 +1,8 @@
-"""Real-data results: ``python -m experiments.real`` (logic in ``mfcl_jax.pipeline.real``)."""
+"""Real-data results: ``python -m experiments.real`` (logic in ``mfcl_jax.study.real``)."""
 
 import sys
 
-from mfcl_jax.pipeline.real import main
+from mfcl_jax.study.real import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -76,7 +76,7 @@ def dataset_folders(args) -> list[Path]:
 def input_paths(args, folders) -> list:
     """Every file or folder the localize run reads (an output must be none of them)."""
     from mfcl_jax.floorplan.load import floorplan_files
-    from mfcl_jax.io.dataset import FLOORPLAN_NAMES
+    from mfcl_jax.sources.dataset import FLOORPLAN_NAMES
 
     paths = [args.bag, args.carmen]
     plans = [args.floorplan] if args.floorplan is not None else []
@@ -162,8 +162,8 @@ def load_dataset_input(args, folder, fp, planar):
     them)."""
     from dataclasses import replace
 
-    from mfcl_jax.io import load_dataset
     from mfcl_jax.io.pcd import pcd_fields
+    from mfcl_jax.sources import load_dataset
     from mfcl_jax.sources.planar import planar_scans
     from mfcl_jax.sources.sequence import ScanSequence
 

@@ -161,7 +161,7 @@ def follow(args, progress: Progress) -> int:
     """``--follow DIR``: decisions of a dataset folder that is being written, streamed."""
     from mfcl_jax.cli_inputs import check_inputs, input_paths, mount_flags, planar_params
     from mfcl_jax.io import check_output
-    from mfcl_jax.io.dataset import FLOORPLAN_NAMES
+    from mfcl_jax.sources.dataset import FLOORPLAN_NAMES
 
     folder = args.follow
     if args.dataset or args.bag is not None or args.carmen is not None:

@@ -12,12 +12,13 @@ import pytest
 
 from mfcl_jax.cli import build_parser, main
 from mfcl_jax.floorplan.scenes import symmetric_bays
-from mfcl_jax.io import read_decisions, read_tum, write_dataset
+from mfcl_jax.io import read_decisions, read_tum
 from mfcl_jax.sim.lidar3d import cast3d, livox_mid360
-from mfcl_jax.sim.walk3d import walk3d
 from mfcl_jax.sim.world3d import build_geometry
+from mfcl_jax.sources import write_dataset
 from mfcl_jax.sources.cloud3d import BandParams
 from mfcl_jax.sources.planar import PlanarParams, PlanarStream, input_dim, planar_scans
+from mfcl_jax.sources.walk3d import walk3d
 
 FP = symmetric_bays().floorplan
 SENSOR = livox_mid360(n_azimuth=128, height=0.5)  # 5120 beams: a light Livox-like cloud

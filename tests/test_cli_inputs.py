@@ -158,7 +158,7 @@ def _fails(argv, capsys, *words):
 
 
 def test_input_flag_errors(tmp_path, capsys, recorder):
-    from mfcl_jax.io import write_dataset
+    from mfcl_jax.sources import write_dataset
 
     ds = write_dataset(
         tmp_path / "ds", _plan(), [0.0, 1.0], [np.ones((3, 2))] * 2, np.zeros((2, 3))

@@ -12,10 +12,10 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import LineString, MultiLineString
 
+from mfcl_jax.evaluate.plots_scene import plot_family
 from mfcl_jax.floorplan.families import (
     FAMILIES,
     make_scene,
-    plot_family,
     with_as_built,
     with_clutter,
     with_scale_error,

@@ -15,11 +15,11 @@ from mfcl_jax.floorplan.scenes import Scene, rect_segments, symmetric_bays, thre
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.sim.lidar3d import Lidar3DParams, _cast3d_jit, beam_directions, cast3d, livox_mid360
 from mfcl_jax.sim.raycast import LidarParams, cast, scan_points
-from mfcl_jax.sim.walk3d import walk3d
 from mfcl_jax.sim.world3d import build_geometry, first_hit
 from mfcl_jax.sources.cloud3d import BandParams, Mount, slice_cloud, slice_clouds
 from mfcl_jax.sources.floor import detect_floor
 from mfcl_jax.sources.simulated import simulate_walk
+from mfcl_jax.sources.walk3d import walk3d
 
 ROOM = rect_segments(0.0, 0.0, 10.0, 10.0)  # a 10 m x 10 m room
 H_CEIL = 3.0

@@ -131,7 +131,8 @@ def test_cli_writes_anchors_in_the_plan_frame(tmp_path, monkeypatch, capsys, shi
     from importlib import import_module
 
     from mfcl_jax.cli import main
-    from mfcl_jax.io import read_decisions, write_dataset
+    from mfcl_jax.io import read_decisions
+    from mfcl_jax.sources import write_dataset
 
     # (the package re-exports a function named `localize`: fetch the module itself)
     monkeypatch.setattr(import_module("mfcl_jax.localizer"), "Localizer", _StubLocalizer)

@@ -13,7 +13,8 @@ from shapely.geometry import box
 
 from mfcl_jax.cli import main
 from mfcl_jax.floorplan import Door, Floorplan, Room, save_geojson
-from mfcl_jax.io import DataError, atomic_write, check_output, write_dataset
+from mfcl_jax.io import DataError, atomic_write, check_output
+from mfcl_jax.sources import write_dataset
 
 
 def _plan() -> Floorplan:

@@ -118,11 +118,12 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
 
 def _pictures(cfg: BenchmarkConfig, out: Path) -> None:
     """One picture per family (seed 0) with its walks drawn."""
+    from mfcl_jax.evaluate.plots_scene import plot_family
     from mfcl_jax.floorplan import families
 
     for fam in cfg.families:
         if fam in PROCEDURAL:
-            families.plot_family(families.make_scene(fam, 0), out / "families" / f"{fam}.png")
+            plot_family(families.make_scene(fam, 0), out / "families" / f"{fam}.png")
 
 
 def read_runs(job_dirs) -> pd.DataFrame:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection
@@ -12,7 +14,7 @@ from shapely.geometry.polygon import orient
 
 from mfcl_jax.sim.trajectory import TrajectoryParams, sample_path
 
-__all__ = ["draw_floorplan", "draw_scene", "plot_scenes"]
+__all__ = ["plot_family", "draw_floorplan", "draw_scene", "plot_scenes"]
 
 _ROOM_COLOURS = ["#dbe9f6", "#e3f1dc", "#fbe8d3", "#efe0f3", "#f6f3cf", "#d9f0ef"]
 _TRAJ_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"]
@@ -135,3 +137,49 @@ def plot_scenes(scenes, out=None):
     if out is not None:
         fig.savefig(out, dpi=150, bbox_inches="tight")
     return fig
+
+
+def plot_family(scene, out_png) -> Path:
+    """Draws a scene: the floor plan, the clutter, the real walls where they differ from the
+    plan (dashed) and every walk; written atomically.
+
+    Args:
+        scene: a ``Scene``.
+        out_png: output image path.
+
+    Returns:
+        The path of the PNG written.
+    """
+    import io
+    import textwrap
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    from mfcl_jax.io.atomic import atomic_write
+
+    x0, y0, x1, y1 = scene.floorplan.bounds
+    width = 11.0
+    fig, ax = plt.subplots(figsize=(width, width * (y1 - y0 + 2.0) / (x1 - x0 + 2.0) + 2.4))
+    draw_scene(ax, scene, title="\n".join(textwrap.wrap(f"{scene.name}: {scene.description}", 100)))
+    ax.title.set_fontsize(10)
+    if scene.as_built is not None:
+        ax.add_collection(
+            LineCollection(
+                scene.as_built,
+                colors="#c0008a",
+                linewidths=1.0,
+                linestyles="--",
+                zorder=4,
+                label="real walls (as built)",
+            )
+        )
+    # Beside the plan, not below it: long thin buildings leave no room below.
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return atomic_write(Path(out_png), buf.getvalue())

@@ -23,6 +23,7 @@ import numpy as np
 from shapely.geometry import Polygon, box
 
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
+from mfcl_jax.sim.world3d import DEFAULT_CLUTTER_HEIGHT
 
 __all__ = [
     "Scene",
@@ -35,7 +36,6 @@ __all__ = [
 ]
 
 # A clutter segment of unknown height: taller than a desk, lower than a door head.
-DEFAULT_CLUTTER_HEIGHT = 1.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,10 +1,9 @@
-"""Input/output: TUM trajectories, PCD scans, dataset folders, ROS bags (scans, PointCloud2
+"""Input/output: TUM trajectories, PCD scans, ROS bags (scans, PointCloud2
 layouts, static transforms), CARMEN logs, decision logs, and safe atomic output."""
 
 from mfcl_jax.io.atomic import atomic_write, check_output
 from mfcl_jax.io.bag import BagScans, read_bag
 from mfcl_jax.io.carmen import CarmenLog, read_carmen
-from mfcl_jax.io.dataset import Dataset, load_dataset, write_dataset
 from mfcl_jax.io.decisions import read_decisions, write_decisions
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import read_pcd, write_pcd
@@ -16,10 +15,8 @@ __all__ = [
     "BagScans",
     "CarmenLog",
     "DataError",
-    "Dataset",
     "atomic_write",
     "check_output",
-    "load_dataset",
     "planar_pose",
     "pointcloud2_points",
     "read_bag",
@@ -29,7 +26,6 @@ __all__ = [
     "read_tf_static",
     "read_tum",
     "transform_between",
-    "write_dataset",
     "write_decisions",
     "write_pcd",
     "write_tum",

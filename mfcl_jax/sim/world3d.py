@@ -18,9 +18,9 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from mfcl_jax.floorplan.scenes import DEFAULT_CLUTTER_HEIGHT
-
 __all__ = ["Geometry3D", "build_geometry", "first_hit", "nearest_faces"]
+
+DEFAULT_CLUTTER_HEIGHT = 1.0  # m: furniture height when a scene gives none
 
 
 class Geometry3D(NamedTuple):
@@ -78,7 +78,7 @@ def build_geometry(walls, clutter=None, clutter_height=None, h_ceil: float = 2.8
         walls: ``(F, 2, 2)`` wall faces (``Floorplan.wall_faces``), extruded floor to ceiling.
         clutter: ``(K, 2, 2)`` clutter segments (``Scene.clutter``) or ``None``.
         clutter_height: ``(K,)`` heights (m; ``inf`` or above ``h_ceil``: to the ceiling);
-            ``None``: ``scenes.DEFAULT_CLUTTER_HEIGHT`` each.
+            ``None``: ``DEFAULT_CLUTTER_HEIGHT`` each.
         h_ceil: ceiling height above the floor (m).
     """
     walls = np.asarray(walls, np.float64).reshape(-1, 2, 2)

@@ -1,6 +1,7 @@
 """Every input as one record: a ``Recording`` (floor plan + ``ScanSequence`` + optional
 ``GroundTruth``)."""
 
+from mfcl_jax.sources.dataset import Dataset, load_dataset, write_dataset
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import (
     ScanSequence,
@@ -11,6 +12,9 @@ from mfcl_jax.sources.sequence import (
 )
 
 __all__ = [
+    "Dataset",
+    "load_dataset",
+    "write_dataset",
     "GroundTruth",
     "Recording",
     "ScanSequence",

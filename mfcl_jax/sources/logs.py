@@ -44,7 +44,6 @@ from mfcl_jax.sources.heldout import default_cache_dir, file_digest, held_out_ma
 from mfcl_jax.sources.logwindows import plan_windows
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import ScanSequence
-from mfcl_jax.windows import travelled
 
 __all__ = [
     "LOGS",
@@ -61,6 +60,12 @@ UNTIMED_PERIOD_S = 1.0
 BAG_AGREE = 0.95  # a bag <-> log match is trusted when this fraction of points coincide
 _BUCKET = 256  # odometry rows; one compiled shape per bucket, whatever the window's length
 _odometry = jax.jit(odometry)
+
+
+def _travelled(poses) -> np.ndarray:
+    """Cumulative planar distance along ``poses (T, 3)``, from 0."""
+    xy = np.asarray(poses, np.float64)[:, :2]
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
 
 
 def log_path(name: str) -> Path:
@@ -190,7 +195,7 @@ def log_recordings(
     """
     _check(name, map_res, drift_xy, drift_yaw_deg)
     log = read_log(name)
-    windows = plan_windows(travelled(log.poses), n_windows, length_m, name)
+    windows = plan_windows(_travelled(log.poses), n_windows, length_m, name)
     ok = _time_ok(log.times)
     src = log_path(name).name
     recs = []
@@ -240,7 +245,7 @@ def bag_recordings(
 
     _check("intel", map_res)
     log = read_log("intel")
-    windows = plan_windows(travelled(log.poses), n_windows, length_m, "intel")
+    windows = plan_windows(_travelled(log.poses), n_windows, length_m, "intel")
     bag_file = DATA / "laser" / "intel.orig.bag"
     bag = read_bag(bag_file, "/scan", "/odom")
     off, bi, li, agree = bag_ground_truth(bag, log)

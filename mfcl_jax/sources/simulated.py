@@ -21,7 +21,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.batch import bucket
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.raycast import cast, scan_points
@@ -134,7 +133,7 @@ def simulate(
     n_scan = len(all_poses)
     # Fixed shapes: scans in chunks of CHUNK, surfaces in a power-of-two bucket, so every
     # building and run length shares a handful of compilations.
-    m_cap = bucket(len(segs), minimum=256)
+    m_cap = 1 << max(8, (len(segs) - 1).bit_length())
     seg_pad = np.zeros((m_cap, 2, 2))
     seg_pad[: len(segs)] = segs
     seg_valid = np.arange(m_cap) < len(segs)
@@ -198,7 +197,7 @@ def simulate_dataset(
     ``groundtruth.tum``.
     """
     from mfcl_jax.floorplan.origin import to_local_frame, to_plan_frame
-    from mfcl_jax.io.dataset import write_dataset
+    from mfcl_jax.sources.dataset import write_dataset
     from mfcl_jax.sources.walks import check_waypoints
 
     wp = to_local_frame(np.asarray(waypoints, np.float64), floorplan.offset)

@@ -13,7 +13,8 @@ deterministically from the family name and a seed. The families, each a regime o
 * ``mirror``: a wing and its mirror image joined by a lobby.
 
 Faults turn a scene into a new one where reality and plan disagree (``with_clutter``,
-``with_as_built``, ``with_scale_error``); ``write_family_geojson`` and ``plot_family`` write it.
+``with_as_built``, ``with_scale_error``); ``write_family_geojson`` writes it
+(``evaluate.plots_scene.plot_family`` draws it).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from mfcl_jax.floorplan.families.faults import with_clutter, with_scale_error
 from mfcl_jax.floorplan.families.halls import hall
 from mfcl_jax.floorplan.families.mirror import mirror
 from mfcl_jax.floorplan.families.offices import offices
-from mfcl_jax.floorplan.families.output import plot_family, write_family_geojson
+from mfcl_jax.floorplan.families.output import write_family_geojson
 from mfcl_jax.floorplan.families.rings import ring
 from mfcl_jax.floorplan.families.rooms import plain
 from mfcl_jax.floorplan.families.rotational import rotational
@@ -41,7 +42,6 @@ __all__ = [
     "with_as_built",
     "with_scale_error",
     "write_family_geojson",
-    "plot_family",
 ]
 
 _BUILDERS = {

@@ -20,7 +20,7 @@ from shapely import affinity
 from mfcl_jax.floorplan.families.asbuilt import seeded
 from mfcl_jax.floorplan.families.clutter import furnish
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
-from mfcl_jax.floorplan.scenes import DEFAULT_CLUTTER_HEIGHT
+from mfcl_jax.sim.world3d import DEFAULT_CLUTTER_HEIGHT
 
 __all__ = ["with_clutter", "with_scale_error"]
 

@@ -1,1 +1,0 @@
-"""Real-data experiment runner (``experiments.real``) and occupancy maps from logs."""

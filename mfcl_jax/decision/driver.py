@@ -47,23 +47,32 @@ def building_maps(floorplans, used, min_iou: float | None = None) -> dict[int, D
     return out
 
 
-def chunks(run_building, runs_per_call: int, buildings_per_call: int) -> list[np.ndarray]:
+def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None):
     """Run indices in chunks of at most ``runs_per_call`` runs and ``buildings_per_call``
-    distinct buildings (runs of one building kept together where possible)."""
-    order = np.argsort(np.asarray(run_building), kind="stable")
-    out, cur, seen = [], [], set()
+    distinct buildings; runs with different ``keys`` (shape buckets) never share a chunk, and
+    runs of one building stay together where possible."""
+    rb = np.asarray(run_building)
+    keys = np.zeros(len(rb), np.int64) if keys is None else np.asarray(keys)
+    order = np.lexsort((rb, keys))
+    out, cur, seen, key = [], [], set(), None
     for r in order:
-        b = int(run_building[r])
-        if cur and (
-            len(cur) == runs_per_call or (b not in seen and len(seen) == buildings_per_call)
-        ):
+        b = int(rb[r])
+        full = len(cur) == runs_per_call or (b not in seen and len(seen) == buildings_per_call)
+        if cur and (full or keys[r] != key):
             out.append(np.asarray(cur))
             cur, seen = [], set()
         cur.append(int(r))
         seen.add(b)
+        key = keys[r]
     if cur:
         out.append(np.asarray(cur))
     return out
+
+
+def _bucket(n, minimum, step=None):
+    if step:
+        return max(minimum, -(-int(n) // step) * step)
+    return 1 << max(minimum.bit_length() - 1, (max(int(n), 1) - 1).bit_length())
 
 
 def decide(
@@ -73,7 +82,7 @@ def decide(
     params: DecisionParams | list[DecisionParams] | None = None,
     ours=tuple(policies.OURS_VARIANTS),
     min_iou: float | None = None,
-    runs_per_call: int = 32,
+    runs_per_call: int = 8,
     buildings_per_call: int = 8,
     run_chunk: int = 8,
     progress=None,
@@ -105,29 +114,66 @@ def decide(
     runs_per_call = max(1, min(runs_per_call, rb.shape[0]))
     maps = building_maps(floorplans, sorted(set(rb.tolist())), min_iou)
     any_map = next(iter(maps.values()))
-    parts, tc, tr, compiled = [], 0.0, 0.0, None
-    R = rb.shape[0]
-    for idx in chunks(rb, runs_per_call, buildings_per_call):
+    # Shape buckets: runs are padded to their own bucket of windows (multiples of 16) and
+    # keyframes (powers of two), not to the longest run of the batch.
+    k_b = np.asarray([_bucket(n, 16, 16) for n in np.asarray(runs.window_mask).sum(1)])
+    t_b = np.asarray([_bucket(n, 128) for n in np.asarray(runs.traj_mask).sum(1)])
+    parts, tc, tr, compiled = [], 0.0, 0.0, {}
+    R, K = rb.shape[0], int(np.asarray(runs.window_mask).shape[1])
+    for idx in chunks(rb, runs_per_call, buildings_per_call, keys=k_b * 65536 + t_b):
+        kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
         sub = jax.tree.map(lambda a, i=idx: _pad_rows(np.asarray(a)[i], runs_per_call), runs)
+        sub = _trim(sub, kb, tb)
         used = list(dict.fromkeys(rb[idx].tolist()))
         stack = [maps[b] for b in used] + [any_map] * (buildings_per_call - len(used))
         mp = jax.tree.map(lambda *xs: np.stack(xs), *stack)
         local = np.asarray([used.index(b) for b in rb[idx]], np.int32)
         local = _pad_rows(local, runs_per_call)
-        if compiled is None:
+        if (kb, tb) not in compiled:
             t0 = time.perf_counter()
-            compiled = evaluate.lower(sub, mp, local, stacked, var, run_chunk=run_chunk).compile()
-            tc = time.perf_counter() - t0
+            lowered = evaluate.lower(sub, mp, local, stacked, var, run_chunk=run_chunk)
+            compiled[kb, tb] = lowered.compile()
+            tc += time.perf_counter() - t0
         t0 = time.perf_counter()
-        dec = jax.block_until_ready(compiled(sub, mp, local, stacked, var))
+        dec = jax.block_until_ready(compiled[kb, tb](sub, mp, local, stacked, var))
         tr += time.perf_counter() - t0
         n = len(idx)
-        parts.append((idx, jax.tree.map(lambda a: np.asarray(a)[:n], dec)))  # noqa: B023
+        dec = jax.tree.map(lambda a: _pad_axis1(np.asarray(a)[:n], K), dec)  # noqa: B023
+        parts.append((idx, dec))
         if progress is not None:
             progress(sum(len(i) for i, _ in parts))
     dec = _scatter(parts, R)
     frame = to_frame(dec, policy_names(ours), batch.runs.window_mask, n_bad)
     return frame, {"compile_s": tc, "run_s": tr}
+
+
+def _trim(runs, kb: int, tb: int):
+    """``RunInputs`` cut (or padded) to ``kb`` windows and ``tb`` keyframes."""
+
+    def fit(a, axis, size):
+        a = np.asarray(a)
+        if a.shape[axis] >= size:
+            return np.take(a, np.arange(size), axis=axis)
+        pad = [(0, 0)] * a.ndim
+        pad[axis] = (0, size - a.shape[axis])
+        return np.pad(a, pad)
+
+    per_window = ("H", "score", "mask", "window_start", "window_end", "window_mask", "X",
+                  "ev_points", "ev_origins", "ev_mask")  # fmt: skip
+    kw = {f: fit(getattr(runs, f), 1, kb) for f in per_window}
+    kw.update(traj=fit(runs.traj, 1, tb), traj_mask=fit(runs.traj_mask, 1, tb))
+    return type(runs)(**kw)
+
+
+def _pad_axis1(a: np.ndarray, n: int) -> np.ndarray:
+    """Fits axis 1 (windows) of a chunk's decisions to the batch's window count."""
+    if a.ndim < 2 or a.shape[1] == n:
+        return a
+    if a.shape[1] > n:
+        return a[:, :n]
+    pad = [(0, 0)] * a.ndim
+    pad[1] = (0, n - a.shape[1])
+    return np.pad(a, pad)
 
 
 def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:

@@ -41,6 +41,8 @@ __all__ = [
     "common_shape",
     "register",
     "register_debug",
+    "register_stages",
+    "STAGES",
     "make_register",
     "sanitize_submaps",
     "TRACE_COUNT",
@@ -302,17 +304,39 @@ def common_features(
     return [build_features(fp, params, **kw) for fp in fps]
 
 
-def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendParams):
+STAGES = (
+    "lines",
+    "corners",
+    "votes",
+    "peaks",
+    "prescreen",
+    "score",
+    "refine",
+    "rescore",
+    "dedupe",
+)
+
+
+def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendParams, stop=None):
+    """The whole pipeline on one submap; ``stop`` (a name in ``STAGES``) ends it early and
+    returns that stage's output instead (``register_stages``, for the stage profile)."""
     TRACE_COUNT[0] += 1  # Python side effect: runs at trace time only
     # One sort of the P points; every later subsample is a strided gather.
     points, origins, mask = features.compact(points, origins, mask)
     sub = partial(features.subsample, points, origins, mask, compacted=True)
     pts, org, ok, n_valid = sub(p.hough_points)
     lines = features.detect_lines(pts, org, ok, p)
+    if stop == "lines":
+        return lines
     corners = features.detect_corners(lines, ok, p)
-    plan = feats.plan_corners
-    votes, w = hough.corner_votes(corners, plan, p)
+    if stop == "corners":
+        return corners
+    votes, w = hough.corner_votes(corners, feats.plan_corners, p)
+    if stop == "votes":
+        return votes, w
     peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
+    if stop == "peaks":
+        return peaks, peak_ok
 
     def scorer(n):
         vp, vo, vok, _ = sub(n)
@@ -337,12 +361,20 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
 
     # Prescreen every peak, fully score the best n_hough, refine the best J.
     pose_h, _, ok_h = rank(peaks, scorer(p.prescreen_points)(peaks), peak_ok, p.n_hough)
+    if stop == "prescreen":
+        return pose_h, ok_h
     score = scorer(p.verify_points)
     pose0, sc0, ok0 = rank(pose_h, score(pose_h), ok_h, p.J)
+    if stop == "score":
+        return pose0, sc0, ok0
     rp, _, rok, _ = sub(p.refine_points)
     pose1 = refine.refine(pose0, rp, rok, feats, p)
+    if stop == "refine":
+        return pose1
     pose1 = jnp.where(jnp.all(jnp.isfinite(pose1), -1, keepdims=True), pose1, pose0)
     sc1 = score(pose1)
+    if stop == "rescore":
+        return pose1, sc1
     # Keep the refined pose only where the same score improved.
     better = sc1 > sc0
     pose1 = jnp.where(better[:, None], pose1, pose0)
@@ -409,6 +441,18 @@ def register_debug(submaps: SubmapBatch, feats: FloorplanFeatures, params: Front
     fn = jax.vmap(partial(_register_one, feats=feats, p=params))
     pose, score, mask, reason, debug = fn(submaps.points, submaps.origins, submaps.mask)
     return Candidates(pose=pose, score=score, mask=mask, reason=reason), debug
+
+
+def register_stages(
+    submaps: SubmapBatch, feats: FloorplanFeatures, params: FrontendParams, stop: str
+):
+    """The pipeline of ``register`` cut after stage ``stop`` (one of ``STAGES``, in order),
+    returning that stage's per-submap output: the stage profile of ``benchmarks/frontend.py``
+    times these prefixes. ``stop="dedupe"`` is the whole of ``register_debug``."""
+    if stop not in STAGES:
+        raise ValueError(f"register_stages: stop={stop!r} is not one of {STAGES}")
+    fn = jax.vmap(partial(_register_one, feats=feats, p=params, stop=stop))
+    return fn(submaps.points, submaps.origins, submaps.mask)
 
 
 def make_register(params: FrontendParams = FrontendParams()):

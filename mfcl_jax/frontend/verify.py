@@ -22,7 +22,8 @@ drives the refinement (``refine.py``, which maximises its first term by reweight
 and decides whether a refined pose is kept.
 
 Sampling cost: each field is stored as ``(H + 1, W + 1, 4)``, the four bilinear neighbours of
-every cell side by side (``stack4``), so one sample is a single gather of 4 contiguous floats.
+every cell side by side (``stack4``), so one sample reads one 16-byte cell (four scalar gathers
+from one cache line).
 """
 
 from __future__ import annotations
@@ -32,9 +33,16 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
-from mfcl_jax import se2
-
-__all__ = ["FAR", "free_samples", "plan_fields", "stack4", "sample", "occupancy", "score"]
+__all__ = [
+    "FAR",
+    "free_samples",
+    "plan_fields",
+    "stack4",
+    "sample",
+    "sample_xy",
+    "occupancy",
+    "score",
+]
 
 FAR = 10.0  # signed distance read off the grid (m): no reward there
 
@@ -105,34 +113,60 @@ def stack4(grid, fill: float) -> np.ndarray:
     return np.stack([g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:]], -1)
 
 
-def sample(origin, res: float, field4, xy, fill: float, grad: bool = False):
-    """Bilinear sample of a ``stack4`` field at world points ``xy (*, 2)`` (one gather each).
+def _transform(pose, x, y):
+    """World coordinates of submap points ``x, y (n,)`` under one pose ``(3,)``: the components
+    apart (an ``(n, 2)`` layout costs XLA:CPU a stack, a materialised copy and tiny reductions)."""
+    c, s = jnp.cos(pose[2]), jnp.sin(pose[2])
+    return c * x - s * y + pose[0], s * x + c * y + pose[1]
+
+
+def sample_xy(origin, res: float, field4, x, y, fill: float, grad: bool = False):
+    """Bilinear sample of a ``stack4`` field at world points ``(x, y)``, each ``(*)``.
+
+    The four neighbours are four scalar gathers from one 16-byte cell (one cache line): on
+    XLA:CPU that is half the cost of one gather of a 4-vector.
 
     Args:
         origin: ``(2,)`` raster origin; ``res`` static cell size.
         field4: ``(H + 1, W + 1, 4)`` from ``stack4``.
+        x, y: coordinates (m), same shape.
         fill: value off the grid.
-        grad: also return the spatial gradient ``(*, 2)`` (per m).
+        grad: also return the spatial gradient ``(gx, gy)`` (per m), 0 off the grid.
 
     Returns:
-        ``v (*,)`` or ``(v, g)``. Differentiable in ``xy`` either way.
+        ``v`` or ``(v, gx, gy)``, each of the shape of ``x``. Differentiable in ``x, y``.
     """
-    f = (xy - origin) / res - 0.5
-    f0 = jnp.floor(f)
-    a = f - f0
-    i = f0.astype(jnp.int32) + 1
+    fx = (x - origin[0]) / res - 0.5
+    fy = (y - origin[1]) / res - 0.5
+    x0, y0 = jnp.floor(fx), jnp.floor(fy)
+    ax, ay = fx - x0, fy - y0
+    ix, iy = x0.astype(jnp.int32) + 1, y0.astype(jnp.int32) + 1
     h, w = field4.shape[0], field4.shape[1]
-    ok = (i[..., 0] >= 0) & (i[..., 0] < w) & (i[..., 1] >= 0) & (i[..., 1] < h)
-    c = field4[jnp.clip(i[..., 1], 0, h - 1), jnp.clip(i[..., 0], 0, w - 1)]
-    c = jnp.where(ok[..., None], c, fill)
-    ax, ay = a[..., 0], a[..., 1]
-    lo = c[..., 0] + ax * (c[..., 1] - c[..., 0])
-    hi = c[..., 2] + ax * (c[..., 3] - c[..., 2])
-    v = lo + ay * (hi - lo)
+    ok = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+    k = 4 * (jnp.clip(iy, 0, h - 1) * w + jnp.clip(ix, 0, w - 1))
+    flat = field4.reshape(-1)
+    c0, c1, c2, c3 = (flat.at[k + j].get(mode="promise_in_bounds") for j in range(4))
+    lo = c0 + ax * (c1 - c0)
+    hi = c2 + ax * (c3 - c2)
+    v = jnp.where(ok, lo + ay * (hi - lo), fill)
     if not grad:
         return v
-    gx = (1 - ay) * (c[..., 1] - c[..., 0]) + ay * (c[..., 3] - c[..., 2])
-    return v, jnp.stack([gx, hi - lo], -1) / res
+    gx = jnp.where(ok, (1 - ay) * (c1 - c0) + ay * (c3 - c2), 0.0) / res
+    gy = jnp.where(ok, hi - lo, 0.0) / res
+    return v, gx, gy
+
+
+def sample(origin, res: float, field4, xy, fill: float, grad: bool = False):
+    """Bilinear sample of a ``stack4`` field at world points ``xy (*, 2)`` (``sample_xy``).
+
+    Returns:
+        ``v (*,)`` or ``(v, g)`` with the spatial gradient ``g (*, 2)`` (per m).
+    """
+    out = sample_xy(origin, res, field4, xy[..., 0], xy[..., 1], fill, grad)
+    if not grad:
+        return out
+    v, gx, gy = out
+    return v, jnp.stack([gx, gy], -1)
 
 
 def _mean(v, ok):
@@ -142,7 +176,8 @@ def _mean(v, ok):
 def occupancy(pose, pts, ok, feats, sigma):
     """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1]."""
     r = feats.rasters
-    d = sample(r.origin, r.res, feats.sdf4, se2.apply(pose, pts), FAR)
+    x, y = _transform(pose, pts[:, 0], pts[:, 1])
+    d = sample_xy(r.origin, r.res, feats.sdf4, x, y, FAR)
     return _mean(jnp.exp(-0.5 * (d / sigma) ** 2), ok)
 
 
@@ -160,5 +195,6 @@ def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
         Scalar score in ``[-lam, 1]``; 0 when there are no points.
     """
     r = feats.rasters
-    pen = sample(r.origin, r.res, feats.pen4, se2.apply(pose, q), 1.0)
+    x, y = _transform(pose, q[:, 0], q[:, 1])
+    pen = sample_xy(r.origin, r.res, feats.pen4, x, y, 1.0)
     return occupancy(pose, pts, ok, feats, sigma) - lam * _mean(pen, q_ok)

@@ -110,6 +110,30 @@ def _sums(*xs):
     return jax.lax.reduce(xs, (zero,) * len(xs), add, (xs[0].ndim - 1,))
 
 
+def _grad_normal(pose, rot, lever, pts, okf, feats, sigma):
+    """``grad_and_normal`` at ``pose (3,)`` with ``rot`` its ``(cos, sin)``."""
+    r = feats.rasters
+    c, s = rot
+    rx = c * pts[:, 0] - s * pts[:, 1]
+    ry = s * pts[:, 0] + c * pts[:, 1]
+    d, gx, gy = verify.sample_xy(
+        r.origin, r.res, feats.sdf4, rx + pose[0], ry + pose[1], verify.FAR, grad=True
+    )
+    # Products with per-step reciprocals: a division per point is the dearest scalar op here.
+    gt = (gy * rx - gx * ry) * (1.0 / lever)  # d(d)/d(u_2): R'(theta) p = (-ry, rx)
+    w = okf * jnp.exp(-0.5 * (d * (1.0 / sigma)) ** 2)
+    wd = w * d
+    sums = _sums(
+        wd * gx, wd * gy, wd * gt, w * gx * gx, w * gx * gy, w * gx * gt, w * gy * gy,
+        w * gy * gt, w * gt * gt,
+    )  # fmt: skip
+    cst = 1.0 / (jnp.maximum(jnp.sum(okf), 1.0) * sigma**2)
+    g0, g1, g2, n00, n01, n02, n11, n12, n22 = (cst * v for v in sums)
+    grad = jnp.stack([g0, g1, g2])
+    rows = ((n00, n01, n02), (n01, n11, n12), (n02, n12, n22))
+    return grad, jnp.stack([jnp.stack(row) for row in rows])
+
+
 def grad_and_normal(u, pose0, lever, pts, okf, feats, sigma):
     """Gradient of ``-f`` and the Gauss-Newton normal matrix, at ``u`` (``pose0`` + offset).
 
@@ -127,32 +151,15 @@ def grad_and_normal(u, pose0, lever, pts, okf, feats, sigma):
     Returns:
         ``(grad (3,), normal (3, 3))``.
     """
-    r = feats.rasters
     pose = pose0 + u * _unscale(lever)
-    c, s = jnp.cos(pose[2]), jnp.sin(pose[2])
-    rx = c * pts[:, 0] - s * pts[:, 1]
-    ry = s * pts[:, 0] + c * pts[:, 1]
-    d, gx, gy = verify.sample_xy(
-        r.origin, r.res, feats.sdf4, rx + pose[0], ry + pose[1], verify.FAR, grad=True
-    )
-    gt = (gy * rx - gx * ry) / lever  # d(d)/d(u_2): R'(theta) p = (-ry, rx)
-    w = okf * jnp.exp(-0.5 * (d / sigma) ** 2)
-    wd = w * d
-    sums = _sums(
-        wd * gx, wd * gy, wd * gt, w * gx * gx, w * gx * gy, w * gx * gt, w * gy * gy,
-        w * gy * gt, w * gt * gt,
-    )  # fmt: skip
-    cst = 1.0 / (jnp.maximum(jnp.sum(okf), 1.0) * sigma**2)
-    g0, g1, g2, n00, n01, n02, n11, n12, n22 = (cst * v for v in sums)
-    grad = jnp.stack([g0, g1, g2])
-    normal = jnp.stack(
-        [jnp.stack([n00, n01, n02]), jnp.stack([n01, n11, n12]), jnp.stack([n02, n12, n22])]
-    )
-    return grad, normal
+    return _grad_normal(pose, (jnp.cos(pose[2]), jnp.sin(pose[2])), lever, pts, okf, feats, sigma)
 
 
 def refine(poses, pts, ok, feats, p):
     """Refines ``(J, 3)`` poses of one submap; returns refined ``(J, 3)`` poses.
+
+    All ``J`` candidates step together, so that each step computes their rotations once
+    (``verify.rotation``) before the per-point work.
 
     Args:
         poses: ``(J, 3)`` initial candidates.
@@ -163,6 +170,7 @@ def refine(poses, pts, ok, feats, p):
     """
     okf = ok.astype(jnp.float32)
     lever = jnp.asarray(p.yaw_lever, jnp.float32)
+    unscale = _unscale(lever)
     sig = jnp.asarray(sigma_schedule(p))
     opt = optax.chain(
         scale_by_gauss_newton(DAMPING),
@@ -170,23 +178,25 @@ def refine(poses, pts, ok, feats, p):
         optax.scale(-1.0),
     )
 
-    def one(pose0):
-        u0 = jnp.zeros(3, jnp.float32)
+    def update(g, st, u, nrm):
+        return opt.update(g, st, u, normal=nrm)
 
-        def step(carry, sigma):
-            u, st = carry
-            g, nrm = grad_and_normal(u, pose0, lever, pts, okf, feats, sigma)
-            # optax mixes Python floats into its arithmetic: standard promotion here even when
-            # the caller runs with strict promotion (tests do).
-            with jax.numpy_dtype_promotion("standard"):
-                upd, st = opt.update(g, st, u, normal=nrm)
-                u = optax.apply_updates(u, upd)
-            return (u, st), None
-
+    def step(carry, sigma):
+        u, st = carry
+        pose = poses + u * unscale
+        c, s = verify.rotation(pose)
+        gn = lambda y, c, s: _grad_normal(y, (c, s), lever, pts, okf, feats, sigma)  # noqa: E731
+        g, nrm = jax.vmap(gn)(pose, c, s)
+        # optax mixes Python floats into its arithmetic: standard promotion here even when
+        # the caller runs with strict promotion (tests do).
         with jax.numpy_dtype_promotion("standard"):
-            st0 = opt.init(u0)
-        (u, _), _ = jax.lax.scan(step, (u0, st0), sig)
-        pose = pose0 + u * _unscale(lever)
-        return jnp.concatenate([pose[:2], se2.wrap(pose[2:])])
+            upd, st = jax.vmap(update)(g, st, u, nrm)
+            u = optax.apply_updates(u, upd)
+        return (u, st), None
 
-    return jax.vmap(one)(poses)
+    u0 = jnp.zeros_like(poses)
+    with jax.numpy_dtype_promotion("standard"):
+        st0 = jax.vmap(opt.init)(u0)
+    (u, _), _ = jax.lax.scan(step, (u0, st0), sig)
+    pose = poses + u * unscale
+    return jnp.concatenate([pose[:, :2], se2.wrap(pose[:, 2:])], -1)

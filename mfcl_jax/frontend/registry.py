@@ -341,9 +341,10 @@ def _register_one(points, origins, mask, feats: FloorplanFeatures, p: FrontendPa
     def scorer(n):
         vp, vo, vok, _ = sub(n)
         q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
-        return jax.vmap(
-            lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ, p.lambda_free)
-        )
+        return partial(
+            verify.scores, pts=vp, ok=vok, q=q, q_ok=q_ok, feats=feats, sigma=p.sigma_occ,
+            lam=p.lambda_free,
+        )  # fmt: skip
 
     has_walls = jnp.any(feats.rasters.wall)
     reason = jnp.where(

@@ -28,10 +28,13 @@ from one cache line).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import shapely
 from scipy import ndimage
+
+from mfcl_jax.frontend.materialize import materialize
 
 __all__ = [
     "FAR",
@@ -41,7 +44,9 @@ __all__ = [
     "sample",
     "sample_xy",
     "occupancy",
+    "rotation",
     "score",
+    "scores",
 ]
 
 FAR = 10.0  # signed distance read off the grid (m): no reward there
@@ -65,7 +70,9 @@ def free_samples(pts, org, ok, n_samples: int, stop: float):
     f = jnp.arange(n_samples, dtype=jnp.float32) / n_samples  # (M,)
     q = org[:, None, :] + (f[None, :, None] * (free_len / safe)[:, None, None]) * ray[:, None, :]
     q_ok = jnp.broadcast_to((ok & (free_len > 0))[:, None], q.shape[:2])
-    return q.reshape(-1, 2), q_ok.reshape(-1)
+    # Scoring reads every sample once per candidate pose: compute them once (materialize).
+    qx, qy, q_ok = materialize(q[..., 0].reshape(-1), q[..., 1].reshape(-1), q_ok.reshape(-1))
+    return jnp.stack([qx, qy], -1), q_ok
 
 
 def plan_fields(fp, rasters, sigma_free: float, band: float = 0.6):
@@ -113,10 +120,17 @@ def stack4(grid, fill: float) -> np.ndarray:
     return np.stack([g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:]], -1)
 
 
-def _transform(pose, x, y):
-    """World coordinates of submap points ``x, y (n,)`` under one pose ``(3,)``: the components
-    apart (an ``(n, 2)`` layout costs XLA:CPU a stack, a materialised copy and tiny reductions)."""
-    c, s = jnp.cos(pose[2]), jnp.sin(pose[2])
+def rotation(poses):
+    """``(cos, sin)`` of the headings of ``poses (K, 3)``, each ``(K,)``, computed once per pose
+    (``materialize``), not once per point of the loops that read them."""
+    return materialize(jnp.cos(poses[:, 2]), jnp.sin(poses[:, 2]))
+
+
+def _transform(pose, rot, x, y):
+    """World coordinates of submap points ``x, y (n,)`` under one pose ``(3,)`` with ``rot`` its
+    ``(cos, sin)``: the components apart (an ``(n, 2)`` layout costs XLA:CPU a stack, a
+    materialised copy and tiny reductions)."""
+    c, s = (jnp.cos(pose[2]), jnp.sin(pose[2])) if rot is None else rot
     return c * x - s * y + pose[0], s * x + c * y + pose[1]
 
 
@@ -136,14 +150,16 @@ def sample_xy(origin, res: float, field4, x, y, fill: float, grad: bool = False)
     Returns:
         ``v`` or ``(v, gx, gy)``, each of the shape of ``x``. Differentiable in ``x, y``.
     """
-    fx = (x - origin[0]) / res - 0.5
-    fy = (y - origin[1]) / res - 0.5
+    inv = 1.0 / res  # a product, not a division: scalar divisions dominate the refinement loop
+    fx = (x - origin[0]) * inv - 0.5
+    fy = (y - origin[1]) * inv - 0.5
     x0, y0 = jnp.floor(fx), jnp.floor(fy)
     ax, ay = fx - x0, fy - y0
     ix, iy = x0.astype(jnp.int32) + 1, y0.astype(jnp.int32) + 1
     h, w = field4.shape[0], field4.shape[1]
     ok = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-    k = 4 * (jnp.clip(iy, 0, h - 1) * w + jnp.clip(ix, 0, w - 1))
+    # Clipped, so in bounds; unsigned, so no negative-index wrap-around per gather.
+    k = (4 * (jnp.clip(iy, 0, h - 1) * w + jnp.clip(ix, 0, w - 1))).astype(jnp.uint32)
     flat = field4.reshape(-1)
     c0, c1, c2, c3 = (flat.at[k + j].get(mode="promise_in_bounds") for j in range(4))
     lo = c0 + ax * (c1 - c0)
@@ -151,8 +167,8 @@ def sample_xy(origin, res: float, field4, x, y, fill: float, grad: bool = False)
     v = jnp.where(ok, lo + ay * (hi - lo), fill)
     if not grad:
         return v
-    gx = jnp.where(ok, (1 - ay) * (c1 - c0) + ay * (c3 - c2), 0.0) / res
-    gy = jnp.where(ok, hi - lo, 0.0) / res
+    gx = jnp.where(ok, (1 - ay) * (c1 - c0) + ay * (c3 - c2), 0.0) * inv
+    gy = jnp.where(ok, hi - lo, 0.0) * inv
     return v, gx, gy
 
 
@@ -173,15 +189,18 @@ def _mean(v, ok):
     return jnp.sum(jnp.where(ok, v, 0.0)) / jnp.maximum(jnp.sum(ok).astype(v.dtype), 1.0)
 
 
-def occupancy(pose, pts, ok, feats, sigma):
-    """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1]."""
+def occupancy(pose, pts, ok, feats, sigma, rot=None):
+    """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1].
+
+    ``rot``: the pose's ``(cos, sin)`` from ``rotation``, or None to compute them here.
+    """
     r = feats.rasters
-    x, y = _transform(pose, pts[:, 0], pts[:, 1])
+    x, y = _transform(pose, rot, pts[:, 0], pts[:, 1])
     d = sample_xy(r.origin, r.res, feats.sdf4, x, y, FAR)
     return _mean(jnp.exp(-0.5 * (d / sigma) ** 2), ok)
 
 
-def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
+def score(pose, pts, ok, q, q_ok, feats, sigma, lam, rot=None):
     """Verification score ``s(Y; sigma)`` of one pose (module docstring).
 
     Args:
@@ -190,11 +209,19 @@ def score(pose, pts, ok, q, q_ok, feats, sigma, lam):
         q: ``(m, 2)`` free-space samples, ``q_ok`` their mask.
         feats: ``FloorplanFeatures`` (``sdf4``, ``pen4``, rasters geometry).
         sigma: occupancy kernel width (m); lam: free-space weight ``lambda_free``.
+        rot: the pose's ``(cos, sin)`` from ``rotation``, or None to compute them here.
 
     Returns:
         Scalar score in ``[-lam, 1]``; 0 when there are no points.
     """
     r = feats.rasters
-    x, y = _transform(pose, q[:, 0], q[:, 1])
+    x, y = _transform(pose, rot, q[:, 0], q[:, 1])
     pen = sample_xy(r.origin, r.res, feats.pen4, x, y, 1.0)
-    return occupancy(pose, pts, ok, feats, sigma) - lam * _mean(pen, q_ok)
+    return occupancy(pose, pts, ok, feats, sigma, rot) - lam * _mean(pen, q_ok)
+
+
+def scores(poses, pts, ok, q, q_ok, feats, sigma, lam):
+    """``score`` of every pose of ``poses (K, 3)`` against one submap; ``(K,)``."""
+    c, s = rotation(poses)
+    one = lambda y, c, s: score(y, pts, ok, q, q_ok, feats, sigma, lam, (c, s))  # noqa: E731
+    return jax.vmap(one)(poses, c, s)

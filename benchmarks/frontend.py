@@ -57,7 +57,12 @@ from mfcl_jax.frontend import (  # noqa: E402
     sanitize_submaps,
 )
 from mfcl_jax.frontend.driver import FrontEnd  # noqa: E402
-from mfcl_jax.frontend.registry import STAGES, register_debug, register_stages  # noqa: E402
+from mfcl_jax.frontend.registry import (  # noqa: E402
+    COMPILER_OPTIONS,
+    STAGES,
+    register_debug,
+    register_stages,
+)
 from mfcl_jax.sources.simulated import simulate  # noqa: E402
 
 SCENES = ("three_rooms", "symmetric_bays")
@@ -65,6 +70,7 @@ D_S = (5.0, 6.0, 7.0)
 HIT_XY, HIT_DEG = 0.5, 2.0
 P_STUDY = 2048  # the study's point bucket (windows.pack of 10 seeds x 3 d_s)
 CHUNK = 32  # the study's driver chunk (study.pipeline.register_all)
+OPTS = dict(compiler_options=COMPILER_OPTIONS)  # as every front-end call is compiled
 
 
 def load() -> str:
@@ -186,7 +192,7 @@ def stage_profile(p, sub, feats, reps, rows):
     ]
     fns = {}
     for name in STAGES:
-        fn = jax.jit(partial(register_stages, params=p, stop=name))
+        fn = jax.jit(partial(register_stages, params=p, stop=name), **OPTS)
         t0 = time.perf_counter()
         fns[name] = fn.lower(chunks[0], feats).compile()
         print(f"  compiled prefix ..{name} in {time.perf_counter() - t0:.1f} s", flush=True)
@@ -251,7 +257,7 @@ def area_rows(p, fp, sub, reps, rows):
         pad_submaps(rows_of(sub, slice(a, a + CHUNK)), n=CHUNK, p=P_STUDY)
         for a in range(0, sub.n, CHUNK)
     ]
-    fn = jax.jit(partial(register_stages, params=p, stop=STAGES[-1]))
+    fn = jax.jit(partial(register_stages, params=p, stop=STAGES[-1]), **OPTS)
     for ax in (1, 4):
         s = math.sqrt(ax)
         shape = (int(np.ceil(r.shape[0] * s)), int(np.ceil(r.shape[1] * s)))
@@ -305,7 +311,7 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
     print("load before:", load(), flush=True)
     data = scene_data(seeds)
     N = -(-max(b.n for b, _ in data.values()) // 64) * 64
-    fn = jax.jit(partial(register_debug, params=p))
+    fn = jax.jit(partial(register_debug, params=p), **OPTS)
     rows, errs = [], []
     for (name, d_s), (b, Y) in data.items():
         bb = pad_submaps(b, n=N, p=P_STUDY)

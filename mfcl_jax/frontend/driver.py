@@ -49,7 +49,10 @@ class FrontEnd:
         self.params = params or registry.FrontendParams()
         self.chunk = int(chunk)
         self.multiple = int(multiple)
-        self._fn = jax.jit(lambda sub, feats: registry.register(sub, feats, self.params))
+        self._fn = jax.jit(
+            lambda sub, feats: registry.register(sub, feats, self.params),
+            compiler_options=registry.COMPILER_OPTIONS,
+        )
         self._compiled: dict = {}
         self._feats: dict[int, registry.FloorplanFeatures] = {}
         self.compile_s = 0.0

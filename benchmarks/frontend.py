@@ -14,6 +14,9 @@ Definitions:
 - recall@J: share of submaps with a hit among their J candidates; top-1: the first is a hit.
 - two_walls: the submap shows two detected lines with >= 30 inliers each (of the Hough
   subsample) crossing at >= 30 deg; top1_2walls is top-1 over those submaps.
+- tie: a candidate >= 0.5 m from the top-1 scoring within ``TIE`` (1e-3) of it; the order of
+  tied candidates is decided by rounding (the bays and rooms of the scenes are symmetric), so
+  top1_tied (a hit among the candidates tied with the best) is the rounding-free top-1.
 - alias: a top-1 candidate that is not a hit; its distance to the truth is binned
   (< 3 m, 5.5-9 m: one bay pitch 7.3 m, 12.5-16.5 m: one room 14.4 m or two bays 14.6 m).
 - refinement: for the verified candidate nearest the truth before refinement (and within
@@ -68,6 +71,7 @@ from mfcl_jax.sources.simulated import simulate  # noqa: E402
 SCENES = ("three_rooms", "symmetric_bays")
 D_S = (5.0, 6.0, 7.0)
 HIT_XY, HIT_DEG = 0.5, 2.0
+TIE = 1e-3  # score difference under which two candidates are tied
 P_STUDY = 2048  # the study's point bucket (windows.pack of 10 seeds x 3 d_s)
 CHUNK = 32  # the study's driver chunk (study.pipeline.register_all)
 OPTS = dict(compiler_options=COMPILER_OPTIONS)  # as every front-end call is compiled
@@ -106,6 +110,9 @@ def metrics(c, dbg, Y) -> dict:
     found = hit.any(1)
     rank = np.where(found, hit.argmax(1), -1)
     wrong = ~hit[:, 0] & c.mask[:, 0]
+    tied = c.mask & (c.score >= c.score[:, :1] - TIE)
+    d_top = np.asarray(se2.distance_pair(c.pose, c.pose[:, :1])[0])
+    tie = (tied & (d_top >= HIT_XY)).any(1)
     d_alias = dxy[:, 0][wrong]
     walls = dbg["walls"].astype(bool)
     # Refinement: same candidate before and after.
@@ -125,6 +132,8 @@ def metrics(c, dbg, Y) -> dict:
             n_submaps=n,
             recall_at_J=found.mean(),
             top1=hit[:, 0].mean(),
+            top1_tied=(hit & tied).any(1).mean(),
+            tie_share=tie.mean(),
             share_2walls=walls.mean(),
             top1_2walls=hit[walls, 0].mean() if walls.any() else np.nan,
             share_corner=(dbg["n_corners"] >= 1).mean(),

@@ -71,7 +71,8 @@ class FrontEnd:
         """``build_features`` shape arguments of the bucket holding ``floorplans``."""
         kw = registry.common_shape(floorplans, multiple=self.multiple)
         kw["n_rooms"] = _pow2(kw["n_rooms"], 8)
-        kw["corner_capacity"] = _pow2(kw["corner_capacity"], 64)
+        # Every submap corner is paired with every plan corner slot: no wider than needed.
+        kw["corner_capacity"] = _pow2(max(len(fp.corners[0]) for fp in floorplans), 64)
         return kw
 
     def features(self, b: int) -> registry.FloorplanFeatures:

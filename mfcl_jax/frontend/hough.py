@@ -59,6 +59,42 @@ def corner_votes(sub, plan, p):
     return poses, ok.reshape(-1).astype(jnp.float32)
 
 
+def _peaks(v, wt, p, n_out: int):
+    """Accumulator peaks among the ``m`` votes ``v (m, 3)`` (heaviest first, weights ``wt``,
+    0 past the valid ones): ``(pose (n_out, 3), votes (n_out,))``, zero-padded past ``m``."""
+    m = v.shape[0]
+    good = wt > 0
+    half_cell, half_yaw = 1.5 * p.cell, math.radians(1.5 * p.yaw_bin_deg)
+    # Pairwise offsets, m x m each. Headings in [-pi, pi] differ by at most 2 pi, so the
+    # wrapped difference is min(|d|, 2 pi - |d|): no floating-point modulo per pair.
+    dx = jnp.abs(v[:, None, 0] - v[None, :, 0])
+    dy = jnp.abs(v[:, None, 1] - v[None, :, 1])
+    dth = jnp.abs(v[:, None, 2] - v[None, :, 2])
+    dth = jnp.minimum(dth, 2 * jnp.pi - dth)
+    # XLA:CPU does not fuse a reduction with its operand: the m x m masks are reduced by
+    # matrix-vector products (vectorised), each mask built in one elementwise pass.
+    win = ((dx <= half_cell) & (dy <= half_cell) & (dth <= half_yaw)).astype(jnp.float32)
+    count = win @ wt
+    ar = jnp.arange(m)
+    heavier = (count[None, :] > count[:, None]) | (
+        (count[None, :] == count[:, None]) & (ar[None, :] < ar[:, None])
+    )
+    nms = (dx * dx + dy * dy <= p.nms_xy**2) & (dth <= math.radians(p.nms_deg))
+    beaten = (nms & heavier & good[None, :]).astype(jnp.float32) @ jnp.ones(m, jnp.float32)
+    peak = good & (beaten == 0)
+    top, sel = jax.lax.top_k(jnp.where(peak, count, 0.0), min(n_out, m))
+    # Mean position/heading of each peak's window, referenced to the peak vote (no wrap issues).
+    ref = v[sel]
+    ww = win[sel] * wt[None, :]  # (n_out, m)
+    tot = jnp.maximum(jnp.sum(ww, -1), 1e-9)
+    xy = (ww @ v[:, :2]) / tot[:, None]
+    dyaw = _wrap(v[None, :, 2] - ref[:, None, 2])
+    yaw = _wrap(ref[:, 2] + jnp.sum(ww * dyaw, -1) / tot)
+    pose = jnp.concatenate([xy, yaw[:, None]], -1)
+    pad = n_out - top.shape[0]
+    return jnp.pad(pose, ((0, pad), (0, 0))), jnp.pad(top, (0, pad))
+
+
 def vote(poses, w, p, n_out: int | None = None):
     """Accumulate votes and extract the top ``p.n_hough`` pose peaks.
 
@@ -66,7 +102,11 @@ def vote(poses, w, p, n_out: int | None = None):
     votes (at most ``p.max_votes``, heaviest first) are compared pairwise, each vote's
     smoothed count is the weight inside its ``3 x 3 x 3`` cell window (``+-1.5 cell``,
     ``+-1.5 yaw_bin_deg``), and a vote is a peak when no heavier vote (ties: lower index)
-    lies within the NMS window. Cost is ``O(max_votes^2)``, independent of floor area.
+    lies within the NMS window. Cost is ``O(m^2)``, independent of floor area, with ``m`` the
+    smallest of ``max_votes / 4``, ``max_votes / 2`` and ``max_votes`` that holds every
+    valid vote (a ``lax.switch``: the invalid votes weigh nothing, so the peaks are the same
+    for any ``m`` that holds the valid ones; most submaps cast about a hundred votes. Under
+    ``vmap`` every branch runs, so the pipeline calls this per submap).
 
     Args:
         poses: ``(V, 3)`` vote poses, headings in ``[-pi, pi]`` (as ``corner_votes`` gives);
@@ -76,39 +116,17 @@ def vote(poses, w, p, n_out: int | None = None):
 
     Returns:
         ``(pose (J_h, 3), votes (J_h,), valid (J_h,), n_votes, overflow)``, strongest first;
-        each pose is the mean of the votes in its window.
+        each pose is the mean of the votes in its window (padding: zero pose, zero votes).
     """
     M = min(p.max_votes, poses.shape[0])
+    n_out = min(n_out or p.n_hough, M)
     n_votes = jnp.sum(w > 0)
     wt, idx = jax.lax.top_k(w, M)
     v = poses[idx]
-    good = wt > 0
-    wt = jnp.where(good, wt, 0.0)
-    half_cell, half_yaw = 1.5 * p.cell, math.radians(1.5 * p.yaw_bin_deg)
-    # Pairwise offsets, M x M each. Headings in [-pi, pi] differ by at most 2 pi, so the
-    # wrapped difference is min(|d|, 2 pi - |d|): no floating-point modulo per pair.
-    dx = jnp.abs(v[:, None, 0] - v[None, :, 0])
-    dy = jnp.abs(v[:, None, 1] - v[None, :, 1])
-    dth = jnp.abs(v[:, None, 2] - v[None, :, 2])
-    dth = jnp.minimum(dth, 2 * jnp.pi - dth)
-    # XLA:CPU does not fuse a reduction with its operand: the M x M masks are reduced by
-    # matrix-vector products (vectorised), each mask built in one elementwise pass.
-    win = ((dx <= half_cell) & (dy <= half_cell) & (dth <= half_yaw)).astype(jnp.float32)
-    count = win @ wt
-    ar = jnp.arange(M)
-    heavier = (count[None, :] > count[:, None]) | (
-        (count[None, :] == count[:, None]) & (ar[None, :] < ar[:, None])
-    )
-    nms = (dx * dx + dy * dy <= p.nms_xy**2) & (dth <= math.radians(p.nms_deg))
-    beaten = (nms & heavier & good[None, :]).astype(jnp.float32) @ jnp.ones(M, jnp.float32)
-    peak = good & (beaten == 0)
-    top, sel = jax.lax.top_k(jnp.where(peak, count, 0.0), min(n_out or p.n_hough, M))
-    # Mean position/heading of each peak's window, referenced to the peak vote (no wrap issues).
-    ref = v[sel]
-    ww = win[sel] * wt[None, :]  # (J_h, M)
-    tot = jnp.maximum(jnp.sum(ww, -1), 1e-9)
-    xy = (ww @ v[:, :2]) / tot[:, None]
-    dyaw = _wrap(v[None, :, 2] - ref[:, None, 2])
-    yaw = _wrap(ref[:, 2] + jnp.sum(ww * dyaw, -1) / tot)
-    pose = jnp.concatenate([xy, yaw[:, None]], -1)
+    wt = jnp.where(wt > 0, wt, 0.0)
+    sizes = sorted({max(1, M // 4), max(1, M // 2), M})
+    # top_k lists equal weights by index, so the m heaviest are a prefix of the M heaviest.
+    branches = [lambda v, wt, m=m: _peaks(v[:m], wt[:m], p, n_out) for m in sizes]
+    branch = jnp.sum(n_votes > jnp.asarray(sizes[:-1]))
+    pose, top = jax.lax.switch(branch, branches, v, wt)
     return pose, top, top > 0, n_votes, n_votes > M

@@ -8,8 +8,8 @@ all three coordinates share one unit. ``sigma`` shrinks geometrically from ``sig
 first half of the steps and stays there, so the final steps optimise the very score that later
 decides whether the refined pose is kept.
 
-The optimiser is an optax chain, run in ``lax.scan`` over the steps and ``vmap``-ed over the
-candidates (and, by the caller, over submaps):
+The optimiser is an optax chain, run in ``lax.scan`` over the steps with all candidates of a
+submap stepping together (``vmap`` inside each step; the caller batches the submaps):
 
     scale_by_gauss_newton  ->  clip_by_global_norm(refine_max_step)  ->  scale(-1)
 

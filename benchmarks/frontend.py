@@ -397,6 +397,8 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
     print("roofline:", sentence, flush=True)
     trows.append(dict(kind="roofline", stage=sentence, load=load()))
     tdf = pd.DataFrame(trows)
+    ints = ["P", "chunk", "n_submaps", "repeats", "area_x"]
+    tdf[ints] = tdf[ints].astype("Int64")  # the roofline row leaves them empty
     tdf.to_csv(out / "frontend_timing.csv", index=False)
     figure(df, pd.DataFrame(errs), tdf, p, out / "frontend.png")
     return df, tdf

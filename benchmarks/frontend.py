@@ -1,34 +1,45 @@
 """Front-end benchmark on simulator data: recall@J, top-1, aliases, refinement, timing.
 
 Usage: python benchmarks/frontend.py [--seeds 0 1] [--quick]
-Writes results/frontend.csv (one row per scene x d_s), results/frontend_timing.csv (timing vs
-batch mode, floor area, point capacity; per-stage profile; three_rooms d_s = 5 m) and
-results/frontend.png.
+Writes results/frontend.csv (one row per scene x d_s), results/frontend_timing.csv (stage
+profile, driver chunk sizes, single-submap streaming, floor area) and results/frontend.png.
 
-All scenes and window lengths go through ONE compilation: the plans share a raster bucket
-(``common_features``) and the submap batches are padded to one (N, P) bucket on the host.
+Data: the study's path (``sources.simulated`` -> ``windows.cut`` -> ``windows.pack``) on every
+trajectory of the stand-in scenes; the truth of a submap is the true sensor pose at its
+window's last scan. All scenes and window lengths go through ONE compilation: the plans share
+a raster bucket (``common_features``) and the submaps are padded to one (N, P) bucket.
 
 Definitions:
 - hit: a returned candidate within 0.5 m and 2 deg of the true ``^B T_S``.
 - recall@J: share of submaps with a hit among their J candidates; top-1: the first is a hit.
-- two_walls: the submap shows two detected lines with >= 30 inliers each (of the 768-point
-  Hough subsample) crossing at >= 30 deg; top1_2walls is top-1 over those submaps.
+- two_walls: the submap shows two detected lines with >= 30 inliers each (of the Hough
+  subsample) crossing at >= 30 deg; top1_2walls is top-1 over those submaps.
+- tie: a candidate >= 0.5 m from the top-1 scoring within ``TIE`` (1e-3) of it; the order of
+  tied candidates is decided by rounding (the bays and rooms of the scenes are symmetric), so
+  top1_tied (a hit among the candidates tied with the best) is the rounding-free top-1.
 - alias: a top-1 candidate that is not a hit; its distance to the truth is binned
   (< 3 m, 5.5-9 m: one bay pitch 7.3 m, 12.5-16.5 m: one room 14.4 m or two bays 14.6 m).
 - refinement: for the verified candidate nearest the truth before refinement (and within
   0.5 m), its position / heading error before and after refinement (same candidate).
+
+Timing (all in this one process, compile time apart, medians of interleaved repetitions):
+- stage: the pipeline cut after each stage (``registry.register_stages``), every prefix run
+  on the same chunks in turn within each repetition; ``ms_per_submap`` is the median over
+  repetitions of the difference to the previous prefix in the same repetition.
+- driver: ``FrontEnd.register`` (host padding included) on every benchmark submap, per chunk
+  size; chunk 1 is the streaming robot.
+- area: the full pipeline with the plan padded to a 2x / 4x larger raster bucket.
 """
 
 from __future__ import annotations
 
 import argparse
-import subprocess
+import math
 import time
 from functools import partial
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import matplotlib
 import numpy as np
 import pandas as pd
@@ -37,7 +48,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from mfcl_jax import se2  # noqa: E402
-from mfcl_jax.batch import SubmapBatch  # noqa: E402
+from mfcl_jax import windows as W  # noqa: E402
+from mfcl_jax.batch import SubmapBatch, pad_submaps  # noqa: E402
 from mfcl_jax.floorplan.scenes import get_scene  # noqa: E402
 from mfcl_jax.frontend import (  # noqa: E402
     FrontendParams,
@@ -45,54 +57,49 @@ from mfcl_jax.frontend import (  # noqa: E402
     common_features,
     features,
     hough,
-    refine,
     sanitize_submaps,
-    verify,
 )
-from mfcl_jax.frontend.registry import register, register_debug  # noqa: E402
-from mfcl_jax.sim import simulate  # noqa: E402
+from mfcl_jax.frontend.driver import FrontEnd  # noqa: E402
+from mfcl_jax.frontend.registry import (  # noqa: E402
+    COMPILER_OPTIONS,
+    STAGES,
+    register_debug,
+    register_stages,
+)
+from mfcl_jax.sources.simulated import simulate  # noqa: E402
 
 SCENES = ("three_rooms", "symmetric_bays")
 D_S = (5.0, 6.0, 7.0)
 HIT_XY, HIT_DEG = 0.5, 2.0
+TIE = 1e-3  # score difference under which two candidates are tied
+P_STUDY = 2048  # the study's point bucket (windows.pack of 10 seeds x 3 d_s)
+CHUNK = 32  # the study's driver chunk (study.pipeline.register_all)
+OPTS = dict(compiler_options=COMPILER_OPTIONS)  # as every front-end call is compiled
 
 
 def load() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    with open("/proc/loadavg") as f:
+        return " ".join(f.read().split()[:3])
 
 
-def pad_batch(b: SubmapBatch, n: int, P: int) -> SubmapBatch:
-    """Host: pads a batch to ``n`` submaps (empty) and ``P`` points per submap."""
-    if P < b.points.shape[1] and np.asarray(b.mask)[:, P:].any():
-        raise ValueError(f"pad_batch: submaps hold more than {P=} points")
-    b = jax.tree.map(lambda a: np.asarray(a)[:, :P] if np.ndim(a) >= 2 else np.asarray(a), b)
-
-    def pad(a, fill=0):
-        a = np.asarray(a)
-        out = np.full((n, *((P,) if a.ndim >= 2 else ()), *a.shape[2:]), fill, a.dtype)
-        out[tuple(slice(0, s) for s in a.shape[:2])] = a
-        return out
-
-    return SubmapBatch(
-        points=pad(b.points),
-        origins=pad(b.origins),
-        mask=pad(b.mask, False),
-        X=np.concatenate([np.asarray(b.X), np.zeros((n - b.n, 3), np.float32)]),
-        run=pad(b.run),
-        window=pad(b.window),
-        t=pad(b.t),
-        n_dropped=pad(b.n_dropped),
-    )
+def scene_data(seeds) -> dict:
+    """``{(scene, d_s): (SubmapBatch, Y (n, 3))}`` over every trajectory of each scene."""
+    out = {}
+    for name in SCENES:
+        recs = simulate(name, seeds=seeds)
+        for d_s in D_S:
+            items, Y = [], []
+            for r in recs:
+                w = W.cut(r.seq, W.WindowParams(d_s=d_s))
+                items.append((r.seq, w, 0))
+                Y.append(np.asarray(r.truth.poses)[w.last_scan()])
+            sub = sanitize_submaps(W.pack(items).submaps)
+            out[name, d_s] = (sub, np.concatenate(Y).astype(np.float32))
+    return out
 
 
-def timed(fn, *args, repeats=5) -> float:
-    """Median seconds of ``repeats`` calls (the caller compiled ``fn`` already)."""
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
+def rows_of(b: SubmapBatch, idx) -> SubmapBatch:
+    return jax.tree.map(lambda a: np.asarray(a)[idx], b)
 
 
 def metrics(c, dbg, Y) -> dict:
@@ -103,6 +110,9 @@ def metrics(c, dbg, Y) -> dict:
     found = hit.any(1)
     rank = np.where(found, hit.argmax(1), -1)
     wrong = ~hit[:, 0] & c.mask[:, 0]
+    tied = c.mask & (c.score >= c.score[:, :1] - TIE)
+    d_top = np.asarray(se2.distance_pair(c.pose, c.pose[:, :1])[0])
+    tie = (tied & (d_top >= HIT_XY)).any(1)
     d_alias = dxy[:, 0][wrong]
     walls = dbg["walls"].astype(bool)
     # Refinement: same candidate before and after.
@@ -115,25 +125,23 @@ def metrics(c, dbg, Y) -> dict:
     a0, a1 = np.degrees(t0[r, k][near]), np.degrees(t1[r, k][near])
     moved = np.any(dbg["refined"] != dbg["pose0"], -1) & dbg["ok0"]
     q = lambda a, pct: float(np.percentile(a, pct)) if len(a) else np.nan  # noqa: E731
+    bay, room = (d_alias >= 5.5) & (d_alias < 9), (d_alias >= 12.5) & (d_alias < 16.5)
+    binned = (d_alias < 3) | bay | room
     return (
         dict(
             n_submaps=n,
             recall_at_J=found.mean(),
             top1=hit[:, 0].mean(),
+            top1_tied=(hit & tied).any(1).mean(),
+            tie_share=tie.mean(),
             share_2walls=walls.mean(),
             top1_2walls=hit[walls, 0].mean() if walls.any() else np.nan,
             share_corner=(dbg["n_corners"] >= 1).mean(),
             alias_share=wrong.mean(),
             alias_lt3m=(d_alias < 3).sum() / n,
-            alias_5to9m=((d_alias >= 5.5) & (d_alias < 9)).sum() / n,
-            alias_12to17m=((d_alias >= 12.5) & (d_alias < 16.5)).sum() / n,
-            alias_other=wrong.mean()
-            - (
-                (d_alias < 3)
-                | ((d_alias >= 5.5) & (d_alias < 9))
-                | ((d_alias >= 12.5) & (d_alias < 16.5))
-            ).sum()
-            / n,
+            alias_5to9m=bay.sum() / n,
+            alias_12to17m=room.sum() / n,
+            alias_other=wrong.mean() - binned.sum() / n,
             alias_median_m=float(np.median(d_alias)) if len(d_alias) else np.nan,
             median_rank=float(np.median(rank[found])) if found.any() else np.nan,
             max_rank=int(rank.max()),
@@ -160,8 +168,7 @@ def diagnose(b, Y, feats, p, rows):
         pts, org, ok, _ = features.subsample(b.points[i], b.origins[i], b.mask[i], p.hough_points)
         lines = features.detect_lines(pts, org, ok, p)
         corners = features.detect_corners(lines, ok, p)
-        plan = feats.plan_corners
-        votes, w = hough.corner_votes(corners, plan, p)
+        votes, w = hough.corner_votes(corners, feats.plan_corners, p)
         dxy, dth = (np.asarray(a) for a in se2.distance_pair(votes, np.float32(Y[i])))
         v = np.asarray(w) > 0
         j = np.argmin(np.where(v, dxy + 0.2 * np.degrees(dth), np.inf))
@@ -173,143 +180,173 @@ def diagnose(b, Y, feats, p, rows):
         )
 
 
-def stage_fn(k, p):
-    """Pipeline prefix ``k`` (0 lines, 1 corners, 2 votes+accumulator, 3 prescreen+verify,
-    4 refine, 5 re-score) for the stage profile."""
-
-    def run(points, origins, mask, feats):
-        points, origins, mask = features.compact(points, origins, mask)
-        sub = partial(features.subsample, points, origins, mask, compacted=True)
-        pts, org, ok, _ = sub(p.hough_points)
-        lines = features.detect_lines(pts, org, ok, p)
-        if k == 0:
-            return lines["u"]
-        corners = features.detect_corners(lines, ok, p)
-        if k == 1:
-            return corners["pos"]
-        plan = feats.plan_corners
-        peaks, _, _, _, _ = hough.vote(*hough.corner_votes(corners, plan, p), p, p.n_prescreen)
-        if k == 2:
-            return peaks
-
-        def scorer(n):
-            vp, vo, vok, _ = sub(n)
-            q, q_ok = verify.free_samples(vp, vo, vok, p.ray_samples, p.ray_stop)
-            return jax.vmap(
-                lambda y: verify.score(y, vp, vok, q, q_ok, feats, p.sigma_occ, p.lambda_free)
-            )
-
-        ph = peaks[jnp.argsort(-scorer(p.prescreen_points)(peaks))[: p.n_hough]]
-        s = scorer(p.verify_points)(ph)
-        if k == 3:
-            return s
-        rp, _, rok, _ = sub(p.refine_points)
-        p1 = refine.refine(ph[jnp.argsort(-s)[: p.J]], rp, rok, feats, p)
-        return p1 if k == 4 else scorer(p.verify_points)(p1)
-
-    return jax.jit(jax.vmap(run, in_axes=(0, 0, 0, None)))
+# Flops per field lookup, counted in verify.sample_xy / verify.score / refine._grad_normal
+# (the exp as its ~15-flop polynomial): transform 8, cell index 10, bilinear 9, then for an
+# occupied point the kernel and the sum (21), for a free-space sample the sum (1), for a
+# refinement point the gradient, the heading column, the kernel and nine products and sums (56).
+FLOPS = dict(occupied=48, free=28, refine=83)
+CORE_GHZ, LOADS_PER_CYCLE, FLOPS_PER_CYCLE = 2.6, 2, 64  # this machine: AVX-512, 2 FMA ports
 
 
-def timing(p, fp, b, feats_one, out_rows, quick=False):
-    """Timing rows: batched vs single, floor area, point capacity, stage profile."""
-    reps = 3 if quick else 5
-    N = -(-b.n // 64) * 64
-    for P in (1024, 2048) if quick else (1024, 2048, 4096):
-        bb = pad_batch(b, N, P)
-        fn = jax.jit(partial(register, params=p))
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(bb, feats_one))
-        comp = time.perf_counter() - t0
-        out_rows.append(
-            dict(
-                kind="points",
-                P=P,
-                area_x=1,
-                mode="batched",
-                ms_per_submap=1e3 * timed(fn, bb, feats_one, repeats=reps) / b.n,
-                compile_s=comp,
-                load=load(),
-            )
-        )
-        print(out_rows[-1], flush=True)
-    bb = pad_batch(b, N, 2048)
-    ones = [
-        pad_batch(jax.tree.map(lambda a, i=i: np.asarray(a)[i : i + 1], b), 1, 2048)
-        for i in range(5)
-    ]
-    fn = jax.jit(partial(register, params=p))
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn(ones[0], feats_one))
-    comp = time.perf_counter() - t0
-    ts = [timed(fn, o, feats_one, repeats=reps) for o in ones]
-    out_rows.append(
-        dict(
-            kind="single",
-            P=2048,
-            area_x=1,
-            mode="one at a time",
-            ms_per_submap=1e3 * float(np.median(ts)),
-            compile_s=comp,
-            load=load(),
-        )
+def work(p: FrontendParams) -> dict:
+    """Static work per submap (fixed by the capacities, not by the data): bilinear field
+    lookups and their flops per stage, and the pairwise tests of the pose accumulator."""
+    look = dict(
+        prescreen=(p.n_prescreen, p.prescreen_points),
+        score=(p.n_hough, p.verify_points),
+        rescore=(p.J, p.verify_points),
     )
-    print(out_rows[-1], flush=True)
-    r = fp.rasterize(0.10)
-    for ax in (2, 4):
-        s = np.sqrt(ax)
-        shape = (int(np.ceil(r.shape[0] * s)), int(np.ceil(r.shape[1] * s)))
-        f = build_features(fp, p, rasters=r, shape=shape, corner_capacity=64 * ax)
-        fn = jax.jit(partial(register, params=p))
-        jax.block_until_ready(fn(bb, f))
-        out_rows.append(
-            dict(
-                kind="area",
-                P=2048,
-                area_x=ax,
-                mode="batched",
-                ms_per_submap=1e3 * timed(fn, bb, f, repeats=reps) / b.n,
-                compile_s=np.nan,
-                load=load(),
-            )
-        )
-        print(out_rows[-1], flush=True)
-    prev = 0.0
-    names = ("lines", "corners", "votes+accumulator", "prescreen+verify", "refine", "re-score")
-    for k, name in enumerate(names):
-        fn = stage_fn(k, p)
-        args = (bb.points, bb.origins, bb.mask, feats_one)
-        jax.block_until_ready(fn(*args))
-        ms = 1e3 * timed(fn, *args, repeats=reps) / b.n
-        out_rows.append(
+    out = {k: k_ * n * (1 + p.ray_samples) for k, (k_, n) in look.items()}
+    flops = {
+        k: k_ * n * (FLOPS["occupied"] + p.ray_samples * FLOPS["free"])
+        for k, (k_, n) in look.items()
+    }
+    out["refine"] = p.J * p.refine_steps * p.refine_points
+    flops["refine"] = out["refine"] * FLOPS["refine"]
+    out["flops"] = flops
+    out["peaks"] = 2 * p.max_votes**2 + p.n_prescreen * p.max_votes
+    return out
+
+
+def stage_profile(p, sub, feats, reps, rows):
+    """Stage table: every pipeline prefix on the same chunks, interleaved repetitions."""
+    chunks = [
+        pad_submaps(rows_of(sub, slice(a, a + CHUNK)), n=CHUNK, p=P_STUDY)
+        for a in range(0, sub.n, CHUNK)
+    ]
+    fns = {}
+    for name in STAGES:
+        fn = jax.jit(partial(register_stages, params=p, stop=name), **OPTS)
+        t0 = time.perf_counter()
+        fns[name] = fn.lower(chunks[0], feats).compile()
+        print(f"  compiled prefix ..{name} in {time.perf_counter() - t0:.1f} s", flush=True)
+    T = np.zeros((reps, len(STAGES)))
+    for r in range(reps):
+        for k, name in enumerate(STAGES):
+            t0 = time.perf_counter()
+            for c in chunks:
+                jax.block_until_ready(fns[name](c, feats))
+            T[r, k] = 1e3 * (time.perf_counter() - t0) / sub.n
+    inc = np.median(np.diff(T, axis=1, prepend=0.0), axis=0)
+    cum = np.median(T, axis=0)
+    for k, name in enumerate(STAGES):
+        rows.append(
             dict(
                 kind="stage",
                 stage=name,
-                P=2048,
-                area_x=1,
-                mode="batched",
-                ms_per_submap=ms - prev,
-                ms_cumulative=ms,
+                P=P_STUDY,
+                chunk=CHUNK,
+                ms_per_submap=inc[k],
+                ms_cumulative=cum[k],
+                n_submaps=sub.n,
+                repeats=reps,
                 load=load(),
             )
         )
-        print(out_rows[-1], flush=True)
-        prev = ms
+    return dict(zip(STAGES, inc, strict=True)), cum[-1]
+
+
+def driver_rows(p, fps, subs, chunk_sizes, reps, rows):
+    """``FrontEnd.register`` on every benchmark submap, per chunk size (compile apart)."""
+    sub = jax.tree.map(lambda *a: np.concatenate(a), *[pad_submaps(s, p=P_STUDY) for s, _ in subs])
+    building = np.concatenate([np.full(s.n, b) for s, b in subs])
+    for c in chunk_sizes:
+        fe = FrontEnd(fps, p, chunk=c)
+        fe.register(sub, building)  # compiles (one bucket for both scenes)
+        ts = []
+        for _ in range(reps):
+            r0 = fe.run_s
+            fe.register(sub, building)
+            ts.append(1e3 * (fe.run_s - r0) / sub.n)
+        rows.append(
+            dict(
+                kind="driver",
+                stage="all",
+                P=P_STUDY,
+                chunk=c,
+                ms_per_submap=float(np.median(ts)),
+                compile_s=fe.compile_s,
+                n_submaps=sub.n,
+                repeats=reps,
+                load=load(),
+            )
+        )
+        print({k: v for k, v in rows[-1].items()}, flush=True)
+
+
+def area_rows(p, fp, sub, reps, rows):
+    """The full pipeline with the plan padded to a larger raster (cost vs floor area)."""
+    r = fp.rasterize(0.10)
+    chunks = [
+        pad_submaps(rows_of(sub, slice(a, a + CHUNK)), n=CHUNK, p=P_STUDY)
+        for a in range(0, sub.n, CHUNK)
+    ]
+    fn = jax.jit(partial(register_stages, params=p, stop=STAGES[-1]), **OPTS)
+    for ax in (1, 4):
+        s = math.sqrt(ax)
+        shape = (int(np.ceil(r.shape[0] * s)), int(np.ceil(r.shape[1] * s)))
+        f = build_features(fp, p, rasters=r, shape=shape, corner_capacity=64 * ax)
+        jax.block_until_ready(fn(chunks[0], f))
+        ts = []
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            for c in chunks:
+                jax.block_until_ready(fn(c, f))
+            ts.append(1e3 * (time.perf_counter() - t0) / sub.n)
+        rows.append(
+            dict(
+                kind="area",
+                stage="all",
+                P=P_STUDY,
+                chunk=CHUNK,
+                area_x=ax,
+                ms_per_submap=float(np.median(ts)),
+                n_submaps=sub.n,
+                repeats=reps,
+                load=load(),
+            )
+        )
+        print({k: v for k, v in rows[-1].items()}, flush=True)
+
+
+def roofline(p, inc) -> str:
+    """One sentence: the dominant kernel's work per submap against two cores' capacity."""
+    w = work(p)
+    look = ("prescreen", "score", "refine", "rescore")
+    n_look = sum(w[k] for k in look)
+    flops = sum(w["flops"][k] for k in look)
+    t_look = sum(inc[k] for k in look)
+    # One lookup reads one 16-byte cell (stack4 layout): one vector load for hand-written code.
+    load_ms = 1e3 * n_look / (2 * CORE_GHZ * 1e9 * LOADS_PER_CYCLE)
+    flop_ms = 1e3 * flops / (2 * CORE_GHZ * 1e9 * FLOPS_PER_CYCLE)
+    bound = max(load_ms, flop_ms)
+    share = 100 * t_look / sum(inc.values())
+    return (
+        f"field lookups (prescreen + score + refine + rescore, {share:.0f}% of the time): "
+        f"{n_look / 1e3:.0f} k per submap, {16 * n_look / 1e6:.1f} MB of "
+        f"16-byte cells and {flops / 1e6:.0f} MFLOP; measured {t_look:.2f} ms = "
+        f"{1e6 * t_look / n_look:.1f} ns per lookup. Two cores ({CORE_GHZ} GHz, "
+        f"{LOADS_PER_CYCLE} loads and {FLOPS_PER_CYCLE} flop per cycle each) would issue the "
+        f"loads in {load_ms:.3f} ms and the flops in {flop_ms:.3f} ms: {t_look / bound:.0f}x "
+        f"away, because XLA:CPU runs the batch on one core and gathers one scalar at a time "
+        f"(four per lookup) from cells scattered over the plan. Pose accumulator: at most "
+        f"{w['peaks'] / 1e3:.0f} k pairwise window tests per submap (the tables run on the "
+        f"smallest of {p.max_votes // 4}, {p.max_votes // 2}, {p.max_votes} votes that holds "
+        f"the valid ones; most submaps cast about 100) in {inc['peaks']:.2f} ms."
+    )
 
 
 def main(seeds=(0, 1), out=Path("results"), quick=False):
     p = FrontendParams()
     fps = [get_scene(s).floorplan for s in SCENES]
     feats = dict(zip(SCENES, common_features(fps, p), strict=True))
-    sims = {(s, d): simulate(s, d_s_values=(d,), seeds=tuple(seeds)) for s in SCENES for d in D_S}
-    batches = {k: sanitize_submaps(v.submaps) for k, v in sims.items()}
-    N = -(-max(b.n for b in batches.values()) // 64) * 64
-    P = max(b.points.shape[1] for b in batches.values())
-    fn = jax.jit(partial(register_debug, params=p))
-    rows, errs = [], []
     print("load before:", load(), flush=True)
-    for (name, d_s), b in batches.items():
-        Y = np.asarray(sims[name, d_s].truth.Y)
-        bb = pad_batch(b, N, P)
+    data = scene_data(seeds)
+    N = -(-max(b.n for b, _ in data.values()) // 64) * 64
+    fn = jax.jit(partial(register_debug, params=p), **OPTS)
+    rows, errs = [], []
+    for (name, d_s), (b, Y) in data.items():
+        bb = pad_submaps(b, n=N, p=P_STUDY)
         t0 = time.perf_counter()
         c, dbg = jax.block_until_ready(fn(bb, feats[name]))
         t_first = time.perf_counter() - t0
@@ -320,7 +357,7 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
                 scene=name,
                 d_s=d_s,
                 seeds=" ".join(map(str, seeds)),
-                P=P,
+                P=P_STUDY,
                 J=p.J,
                 area_m2=float(get_scene(name).floorplan.footprint.area),
                 **m,
@@ -342,18 +379,35 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
     out.mkdir(parents=True, exist_ok=True)
     df.to_csv(out / "frontend.csv", index=False)
 
+    reps = 5 if quick else 7
     trows = []
-    fp = get_scene("three_rooms").floorplan
-    b = batches["three_rooms", 5.0]  # <= 1024 points each: every capacity bucket holds them
-    timing(p, fp, b, build_features(fp, p), trows, quick=quick)
+    # Stage profile on 128 three_rooms submaps drawn over all window lengths.
+    pool = [data["three_rooms", d] for d in D_S]
+    tr = jax.tree.map(lambda *a: np.concatenate(a), *[pad_submaps(b, p=P_STUDY) for b, _ in pool])
+    pick = np.sort(np.random.default_rng(0).permutation(tr.n)[: 4 * CHUNK])
+    stage_sub = rows_of(tr, pick)
+    print("stage profile:", flush=True)
+    inc, total = stage_profile(p, stage_sub, feats["three_rooms"], reps, trows)
+    for row in trows:
+        print(f"  {row['stage']:10s} {row['ms_per_submap']:6.2f} ms/submap", flush=True)
+    print(f"  {'total':10s} {total:6.2f} ms/submap  (load {load()})", flush=True)
+    subs = [(b, SCENES.index(s)) for (s, _), (b, _) in data.items()]
+    driver_rows(p, fps, subs, (1, CHUNK) if quick else (1, 16, CHUNK, 64), 3, trows)
+    if not quick:
+        area_rows(p, fps[0], stage_sub, reps, trows)
+    sentence = roofline(p, inc)
+    print("roofline:", sentence, flush=True)
+    trows.append(dict(kind="roofline", stage=sentence, load=load()))
     tdf = pd.DataFrame(trows)
+    ints = ["P", "chunk", "n_submaps", "repeats", "area_x"]
+    tdf[ints] = tdf[ints].astype("Int64")  # the roofline row leaves them empty
     tdf.to_csv(out / "frontend_timing.csv", index=False)
     figure(df, pd.DataFrame(errs), tdf, p, out / "frontend.png")
     return df, tdf
 
 
 def figure(df, ed, tdf, p, path):
-    fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
+    fig, ax = plt.subplots(1, 4, figsize=(21, 4.2))
     for name, g in ed.groupby("scene"):
         ax[0].hist(
             np.clip(g.top1_err_m, 1e-3, 30), bins=np.geomspace(1e-3, 30, 60), alpha=0.6, label=name
@@ -381,6 +435,12 @@ def figure(df, ed, tdf, p, path):
     ax[2].set_xticks(x, lab, rotation=30, fontsize=8)
     ax[2].set_ylabel("position error of the true candidate (cm)")
     ax[2].legend(fontsize=8)
+    st = tdf[tdf.kind == "stage"]
+    ax[3].barh(st.stage, st.ms_per_submap)
+    ax[3].invert_yaxis()
+    total = st.ms_cumulative.max()
+    ax[3].set_xlabel(f"ms per submap (chunk {CHUNK}, P {P_STUDY}; total {total:.1f})")
+    ax[3].set_title("stage profile (one run, interleaved medians)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 

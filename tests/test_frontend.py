@@ -255,7 +255,10 @@ def test_common_features_one_trace_for_both_buildings():
     ca, cb = REG(b, fa), REG(b, fb)
     assert registry.TRACE_COUNT[0] - before == 1
     assert ca.pose.shape == cb.pose.shape == (N, PARAMS.J, 3)
-    assert hits(cb, 0, sub[2], 0.1, 1.0)[0]  # padding keeps the plan in place
+    # Padding keeps the plan in place: the truth scores best. The bays are symmetric, so the
+    # one-pitch alias ties with the truth to the last bit and rounding orders the two.
+    best = np.asarray(cb.score[0]) >= float(cb.score[0, 0]) - 1e-6
+    assert (hits(cb, 0, sub[2], 0.1, 1.0) & best).any()
 
 
 def test_one_trace_for_every_batch_of_a_shape(asym):

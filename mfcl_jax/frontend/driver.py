@@ -3,11 +3,12 @@
 Every consumer (study, benchmark, ``mfcl localize``) registers through ``FrontEnd``. A
 building's features are padded to a shape bucket (raster sides rounded up to ``multiple``
 cells, room and corner capacities to powers of two), so buildings of similar size share one
-compilation; features are built per building on demand and dropped after use (hundreds of
-buildings never sit in memory at once). Submaps are registered in chunks of ``chunk`` submaps
-of one building per call: the building's features are shared by the chunk (no per-submap copy
-of the rasters), and each compiled function is reused for every chunk, building and run of its
-bucket.
+compilation; the buildings given at construction share ONE bucket, the smallest that holds
+them all (the study's scenes: one compilation). Features are built per building on demand
+and dropped after use (hundreds of buildings never sit in memory at once). Submaps are
+registered in chunks of ``chunk`` submaps of one building per call: the building's features
+are shared by the chunk (no per-submap copy of the rasters), and each compiled function is
+reused for every chunk, building and run of its bucket.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ class FrontEnd:
     """Registers submaps against a fixed list of floor plans.
 
     Args:
-        floorplans: the ``Floorplan`` of every building (index = building id).
+        floorplans: the ``Floorplan`` of every building (index = building id); these share one
+            shape bucket, buildings ``add``-ed later get their own.
         params: ``FrontendParams`` (static: a change recompiles).
         chunk: submaps per compiled call (the robot streams with ``chunk=1``).
 
@@ -49,7 +51,12 @@ class FrontEnd:
         self.params = params or registry.FrontendParams()
         self.chunk = int(chunk)
         self.multiple = int(multiple)
-        self._fn = jax.jit(lambda sub, feats: registry.register(sub, feats, self.params))
+        self._fn = jax.jit(
+            lambda sub, feats: registry.register(sub, feats, self.params),
+            compiler_options=registry.COMPILER_OPTIONS,
+        )
+        self._shared = self._bucket(self.floorplans) if self.floorplans else None
+        self._n_shared = len(self.floorplans)
         self._compiled: dict = {}
         self._feats: dict[int, registry.FloorplanFeatures] = {}
         self.compile_s = 0.0
@@ -60,12 +67,19 @@ class FrontEnd:
         self.floorplans.append(floorplan)
         return len(self.floorplans) - 1
 
+    def _bucket(self, floorplans) -> dict:
+        """``build_features`` shape arguments of the bucket holding ``floorplans``."""
+        kw = registry.common_shape(floorplans, multiple=self.multiple)
+        # Coarse buckets: a benchmark adds hundreds of buildings; each new bucket compiles.
+        kw["n_rooms"] = _pow2(kw["n_rooms"], 32)
+        # Every submap corner is paired with every plan corner slot: no wider than needed.
+        kw["corner_capacity"] = _pow2(max(len(fp.corners[0]) for fp in floorplans), 256)
+        return kw
+
     def features(self, b: int) -> registry.FloorplanFeatures:
         """Features of building ``b`` in its shape bucket (cached until ``release``)."""
         if b not in self._feats:
-            kw = registry.common_shape([self.floorplans[b]], multiple=self.multiple)
-            kw["n_rooms"] = _pow2(kw["n_rooms"], 32)
-            kw["corner_capacity"] = _pow2(kw["corner_capacity"], 256)
+            kw = self._shared if b < self._n_shared else self._bucket([self.floorplans[b]])
             self._feats[b] = registry.build_features(self.floorplans[b], self.params, **kw)
         return self._feats[b]
 

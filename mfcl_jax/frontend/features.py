@@ -27,6 +27,7 @@ import numpy as np
 import shapely
 
 from mfcl_jax import se2
+from mfcl_jax.frontend.materialize import materialize
 
 __all__ = ["compact", "subsample", "detect_lines", "detect_corners", "floorplan_corners"]
 
@@ -38,8 +39,9 @@ def compact(points, origins, mask):
         ``(points, origins, mask)`` of the same shapes; invalid slots hold zeros.
     """
     valid = mask & jnp.all(jnp.isfinite(points), -1) & jnp.all(jnp.isfinite(origins), -1)
-    order = jnp.argsort(~valid, stable=True)
-    ok = valid[order]
+    # The valid indices in scan order (a prefix sum and a scatter, not a sort of P keys).
+    order = jnp.nonzero(valid, size=valid.shape[0], fill_value=0)[0]
+    ok = jnp.arange(valid.shape[0]) < jnp.sum(valid)
     pts = jnp.where(ok[:, None], jnp.nan_to_num(points[order]), 0.0)
     org = jnp.where(ok[:, None], jnp.nan_to_num(origins[order]), 0.0)
     return pts, org, ok
@@ -53,24 +55,23 @@ def subsample(points, origins, mask, n: int, compacted: bool = False):
         origins: ``(P, 2)`` sensor origins of the points.
         mask: ``(P,)`` bool.
         n: static output size.
-        compacted: the input already went through ``compact`` (skips a sort of ``P``).
+        compacted: the input already went through ``compact`` (skips the compaction).
 
     Returns:
         ``(pts (n, 2), org (n, 2), ok (n,), n_valid)``; invalid slots hold zeros.
     """
-    if compacted:
-        valid, order = mask, jnp.arange(points.shape[0])
-    else:
-        valid = mask & jnp.all(jnp.isfinite(points), -1) & jnp.all(jnp.isfinite(origins), -1)
-        order = jnp.argsort(~valid, stable=True)
-    n_valid = jnp.sum(valid)
+    if not compacted:
+        points, origins, mask = compact(points, origins, mask)
+    n_valid = jnp.sum(mask)
     stride = jnp.maximum(n_valid.astype(jnp.float32) / n, 1.0)
     idx = jnp.floor(jnp.arange(n, dtype=jnp.float32) * stride).astype(jnp.int32)
     ok = idx < n_valid
-    idx = order[jnp.clip(idx, 0, points.shape[0] - 1)]
-    pts = jnp.where(ok[:, None], jnp.nan_to_num(points[idx]), 0.0)
-    org = jnp.where(ok[:, None], jnp.nan_to_num(origins[idx]), 0.0)
-    return pts, org, ok, n_valid
+    idx = jnp.clip(idx, 0, points.shape[0] - 1)
+    pts = jnp.where(ok[:, None], points[idx], 0.0)
+    org = jnp.where(ok[:, None], origins[idx], 0.0)
+    # Later loops read the subsample once per line, corner or pose: compute it once.
+    px, py, ox, oy, ok = materialize(pts[:, 0], pts[:, 1], org[:, 0], org[:, 1], ok)
+    return jnp.stack([px, py], -1), jnp.stack([ox, oy], -1), ok, n_valid
 
 
 def _line_peaks(q, ok, p, n_peaks):
@@ -81,19 +82,21 @@ def _line_peaks(q, ok, p, n_peaks):
     rho = q[:, 0:1] * jnp.cos(th) + q[:, 1:2] * jnp.sin(th)  # (n, T)
     ri = jnp.floor((rho + p.rho_max) / p.line_rho_res).astype(jnp.int32)
     good = ok[:, None] & (ri >= 0) & (ri < R)
-    flat = jnp.where(good, jnp.arange(T)[None, :] * R + ri, T * R)
-    acc = jnp.zeros(T * R + 1).at[flat.ravel()].add(good.ravel().astype(jnp.float32))
+    flat = jnp.where(good, jnp.arange(T)[None, :] * R + ri, T * R)  # T * R: a dump slot
+    acc = jnp.zeros(T * R + 1).at[flat.ravel()].add(1.0, mode="promise_in_bounds")
     acc = acc[:-1].reshape(T, R)
     # Noise spreads a wall over neighbouring rho bins: a 3-bin box along rho gathers it.
     acc = acc + jnp.pad(acc[:, 1:], ((0, 0), (0, 1))) + jnp.pad(acc[:, :-1], ((0, 0), (1, 0)))
     wt = max(1, round(p.line_nms_deg * T / 180.0))
     wr = max(1, round(p.line_nms_rho / p.line_rho_res))
     # Local maxima in a (2 wt + 1) x (2 wr + 1) window; theta wraps at pi with rho negated,
-    # so the accumulator is padded with its flipped ends. A tiny ramp breaks plateaus.
+    # so the accumulator is padded with its flipped ends. A tiny ramp breaks plateaus. The
+    # window max is separable: one pass along theta, one along rho (4x fewer comparisons).
     acc = acc + 1e-4 * jnp.arange(T * R, dtype=jnp.float32).reshape(T, R) / (T * R)
     ext = jnp.concatenate([acc[-wt:, ::-1], acc, acc[:wt, ::-1]], 0)
+    mx = jax.lax.reduce_window(ext, -jnp.inf, jax.lax.max, (2 * wt + 1, 1), (1, 1), "VALID")
     mx = jax.lax.reduce_window(
-        ext, -jnp.inf, jax.lax.max, (2 * wt + 1, 2 * wr + 1), (1, 1), ((0, 0), (wr, wr))
+        mx, -jnp.inf, jax.lax.max, (1, 2 * wr + 1), (1, 1), ((0, 0), (wr, wr))
     )
     peak = (acc >= mx) & (acc >= 1.0)
     v, k = jax.lax.top_k(jnp.where(peak, acc, 0.0).ravel(), n_peaks)
@@ -102,21 +105,24 @@ def _line_peaks(q, ok, p, n_peaks):
     return t * (jnp.pi / T), (r + 0.5) * p.line_rho_res - p.rho_max, v
 
 
+def _moments(qx, qy, w):
+    """Weighted centroid and total-least-squares direction angle of points ``(qx, qy)`` under
+    weights ``w``, reduced over axis 0 (the points). Returns ``(mx, my, angle)``."""
+    k = jnp.maximum(jnp.sum(w, 0), 1.0)
+    mx, my = jnp.sum(w * qx, 0) / k, jnp.sum(w * qy, 0) / k
+    dx, dy = qx - mx, qy - my
+    sxx, syy, sxy = jnp.sum(w * dx * dx, 0), jnp.sum(w * dy * dy, 0), jnp.sum(w * dx * dy, 0)
+    return mx, my, 0.5 * jnp.arctan2(2 * sxy, sxx - syy)
+
+
 def _refit(q, ok, theta, rho, band):
     """Total-least-squares refit of lines on their inliers. Returns ``(u, m, inl)``."""
-    n = jnp.stack([jnp.cos(theta), jnp.sin(theta)], -1)  # (L, 2)
-    d = q @ n.T - rho  # (n, L)
+    qx, qy = q[:, 0:1], q[:, 1:2]  # (n, 1): lines along the last axis
+    d = qx * jnp.cos(theta) + qy * jnp.sin(theta) - rho  # (n, L)
     inl = (jnp.abs(d) <= band) & ok[:, None]
-    w = inl.astype(jnp.float32)
-    cnt = jnp.maximum(jnp.sum(w, 0), 1.0)
-    m = (w.T @ q) / cnt[:, None]  # (L, 2)
-    dx = q[:, None, :] - m[None]
-    sxx = jnp.sum(w * dx[..., 0] ** 2, 0)
-    syy = jnp.sum(w * dx[..., 1] ** 2, 0)
-    sxy = jnp.sum(w * dx[..., 0] * dx[..., 1], 0)
-    ang = 0.5 * jnp.arctan2(2 * sxy, sxx - syy)
+    mx, my, ang = _moments(qx, qy, inl.astype(jnp.float32))
     u = jnp.stack([jnp.cos(ang), jnp.sin(ang)], -1)
-    return u, m, inl
+    return u, jnp.stack([mx, my], -1), inl
 
 
 def detect_lines(pts, org, ok, p):
@@ -139,6 +145,7 @@ def detect_lines(pts, org, ok, p):
     cnt = jnp.maximum(jnp.sum(ok).astype(jnp.float32), 1.0)
     c = jnp.sum(jnp.where(ok[:, None], pts, 0.0), 0) / cnt
     q = pts - c
+    qx, qy = q[:, 0], q[:, 1]
     theta, rho, votes = _line_peaks(q, ok, p, 2 * p.n_lines)
     u, m, inl = _refit(q, ok, theta, rho, 1.5 * p.inlier_band)
     order = jnp.argsort(-jnp.sum(inl, 0), stable=True)
@@ -147,33 +154,33 @@ def detect_lines(pts, org, ok, p):
 
     def accept(claimed, line):
         uu, mm = line
-        nn = jnp.stack([-uu[1], uu[0]])
+        mx, my, nx, ny = mm[0], mm[1], -uu[1], uu[0]
         free_pts = ok & ~claimed
         for band in (1.5 * p.inlier_band, p.inlier_band):
-            inl = (jnp.abs((q - mm) @ nn) <= band) & free_pts
-            w = inl.astype(jnp.float32)
-            k = jnp.maximum(jnp.sum(w), 1.0)
-            mm = (w @ q) / k
-            dx = q - mm
-            sxx, syy = jnp.sum(w * dx[:, 0] ** 2), jnp.sum(w * dx[:, 1] ** 2)
-            sxy = jnp.sum(w * dx[:, 0] * dx[:, 1])
-            ang = 0.5 * jnp.arctan2(2 * sxy, sxx - syy)
-            uu = jnp.stack([jnp.cos(ang), jnp.sin(ang)])
-            nn = jnp.stack([-uu[1], uu[0]])
-        inl = (jnp.abs((q - mm) @ nn) <= p.inlier_band) & free_pts
+            inl = (jnp.abs((qx - mx) * nx + (qy - my) * ny) <= band) & free_pts
+            mx, my, ang = _moments(qx, qy, inl.astype(jnp.float32))
+            nx, ny = -jnp.sin(ang), jnp.cos(ang)
+        inl = (jnp.abs((qx - mx) * nx + (qy - my) * ny) <= p.inlier_band) & free_pts
         count = jnp.sum(inl).astype(jnp.float32)
         valid = count >= min_pts
-        return claimed | (inl & valid), (uu, mm, inl, count, valid)
+        line = (jnp.stack([ny, -nx]), jnp.stack([mx, my]), inl, count, valid)
+        return claimed | (inl & valid), line
 
     _, (u, m, inl, count, valid) = jax.lax.scan(accept, jnp.zeros_like(ok), (u, m))
     keep = jnp.argsort(~valid, stable=True)[: p.n_lines]
     u, m, inl, count, valid = u[keep], m[keep], inl[keep].T, count[keep], valid[keep]
-    nrm = jnp.stack([-u[:, 1], u[:, 0]], -1)
+    nrm_x, nrm_y = -u[:, 1], u[:, 0]
     # Free side: where the sensor was when it saw the inliers.
-    side = jnp.sign((org - pts) @ nrm.T)  # (n, L)
+    ray_x, ray_y = (org - pts)[:, 0:1], (org - pts)[:, 1:2]
+    side = jnp.sign(ray_x * nrm_x + ray_y * nrm_y)  # (n, L)
     f = jnp.sum(jnp.where(inl, side, 0.0), 0) / jnp.maximum(count, 1.0)
+    nrm = jnp.stack([nrm_x, nrm_y], -1)
     free = jnp.where((jnp.abs(f) >= 0.5)[:, None], jnp.sign(f)[:, None] * nrm, 0.0)
     return dict(u=u, m=m + c, q_off=c, free=free, inl=inl, count=count, valid=valid, q=q)
+
+
+def _cross(ax, ay, bx, by):
+    return ax * by - ay * bx
 
 
 def detect_corners(lines, ok, p):
@@ -186,46 +193,54 @@ def detect_corners(lines, ok, p):
     L = p.n_lines
     ia, ib = np.triu_indices(L, 1)
     u, m, q, inl = lines["u"], lines["m"] - lines["q_off"], lines["q"], lines["inl"]
-    ua, ub, ma, mb = u[ia], u[ib], m[ia], m[ib]
-    cr = ua[:, 0] * ub[:, 1] - ua[:, 1] * ub[:, 0]
+    uax, uay, ubx, uby = u[ia, 0], u[ia, 1], u[ib, 0], u[ib, 1]
+    cr = _cross(uax, uay, ubx, uby)
     pair_ok = lines["valid"][ia] & lines["valid"][ib]
     pair_ok &= jnp.abs(cr) >= math.sin(math.radians(p.corner_min_angle_deg))
     safe = jnp.where(jnp.abs(cr) > 1e-6, cr, 1.0)
-    dmb = mb - ma
-    s = (dmb[:, 0] * ub[:, 1] - dmb[:, 1] * ub[:, 0]) / safe
-    x = ma + s[:, None] * ua  # (K, 2) centred frame
-    pair_ok &= jnp.all(jnp.abs(x) <= p.rho_max, -1)
+    dmb = m[ib] - m[ia]
+    s = _cross(dmb[:, 0], dmb[:, 1], ubx, uby) / safe
+    xx, xy = m[ia, 0] + s * uax, m[ia, 1] + s * uay  # (K,) centred frame
+    pair_ok &= (jnp.abs(xx) <= p.rho_max) & (jnp.abs(xy) <= p.rho_max)
+    qx, qy = q[None, :, 0], q[None, :, 1]
+    inl_t = inl.T & ok[None]  # (L, n)
 
-    def arms(uu, idx):
-        tp = jnp.sum((q[None, :, :] - x[:, None, :]) * uu[:, None, :], -1)  # (K, n)
-        w = inl.T[idx] & ok[None]
-        plus = jnp.sum(w & (tp > p.arm_min) & (tp < p.arm_max), -1)
-        minus = jnp.sum(w & (tp < -p.arm_min) & (tp > -p.arm_max), -1)
+    def arms(ux, uy, idx):
+        """Inliers of line ``idx`` ``(K,)`` on either side of the corner along ``(ux, uy)``."""
+        tp = (qx - xx[:, None]) * ux[:, None] + (qy - xy[:, None]) * uy[:, None]  # (K, n)
+        w = inl_t[idx]
+        plus = jnp.sum((w & (tp > p.arm_min) & (tp < p.arm_max)).astype(jnp.float32), -1)
+        minus = jnp.sum((w & (tp < -p.arm_min) & (tp > -p.arm_max)).astype(jnp.float32), -1)
         return plus, minus
 
-    pa, na = arms(ua, ia)
-    pb, nb = arms(ub, ib)
+    pa, na = arms(uax, uay, ia)
+    pb, nb = arms(ubx, uby, ib)
     fa, fb = lines["free"][ia], lines["free"][ib]
     out = []
     for sa, ca in ((1.0, pa), (-1.0, na)):
         for sb, cb in ((1.0, pb), (-1.0, nb)):
-            e1, e2, n1, n2 = sa * ua, sb * ub, fa, fb
-            swap = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) < 0
-            e1, e2 = jnp.where(swap[:, None], e2, e1), jnp.where(swap[:, None], e1, e2)
+            e1x, e1y, e2x, e2y = sa * uax, sa * uay, sb * ubx, sb * uby
+            swap = _cross(e1x, e1y, e2x, e2y) < 0
+            e1x, e2x = jnp.where(swap, e2x, e1x), jnp.where(swap, e1x, e2x)
+            e1y, e2y = jnp.where(swap, e2y, e1y), jnp.where(swap, e1y, e2y)
             n1, n2 = jnp.where(swap[:, None], fb, fa), jnp.where(swap[:, None], fa, fb)
-            d12, d21 = jnp.sum(n1 * e2, -1), jnp.sum(n2 * e1, -1)
-            known = (jnp.sum(n1 * n1, -1) > 0) & (jnp.sum(n2 * n2, -1) > 0)
+            d12 = n1[:, 0] * e2x + n1[:, 1] * e2y
+            d21 = n2[:, 0] * e1x + n2[:, 1] * e1y
+            known = (jnp.abs(n1[:, 0]) + jnp.abs(n1[:, 1]) > 0) & (
+                jnp.abs(n2[:, 0]) + jnp.abs(n2[:, 1]) > 0
+            )
             inside, outside = (d12 > 0) & (d21 > 0), (d12 < 0) & (d21 < 0)
             kind = jnp.where(known, jnp.where(inside, 1, -1), 0).astype(jnp.int32)
-            w = jnp.minimum(ca, cb).astype(jnp.float32)
+            w = jnp.minimum(ca, cb)
             good = pair_ok & (w >= p.min_arm_pts) & (~known | inside | outside)
-            a1 = jnp.arctan2(e1[:, 1], e1[:, 0])
-            a2 = jnp.arctan2(e2[:, 1], e2[:, 0])
-            out.append((x, a1, a2, kind, jnp.where(good, w, -1.0).astype(jnp.float32)))
-    pos, a1, a2, kind, wt = (jnp.concatenate(z, 0) for z in zip(*out, strict=True))
+            a1 = jnp.arctan2(e1y, e1x)
+            a2 = jnp.arctan2(e2y, e2x)
+            out.append((a1, a2, kind, jnp.where(good, w, -1.0)))
+    a1, a2, kind, wt = (jnp.concatenate(z, 0) for z in zip(*out, strict=True))
     top, idx = jax.lax.top_k(wt, p.n_corners)
+    x = jnp.stack([xx, xy], -1)
     return dict(
-        pos=pos[idx] + lines["q_off"],
+        pos=x[idx % x.shape[0]] + lines["q_off"],
         a1=a1[idx],
         a2=a2[idx],
         kind=kind[idx],

@@ -8,8 +8,8 @@ all three coordinates share one unit. ``sigma`` shrinks geometrically from ``sig
 first half of the steps and stays there, so the final steps optimise the very score that later
 decides whether the refined pose is kept.
 
-The optimiser is an optax chain, run in ``lax.scan`` over the steps and ``vmap``-ed over the
-candidates (and, by the caller, over submaps):
+The optimiser is an optax chain, run in ``lax.scan`` over the steps with all candidates of a
+submap stepping together (``vmap`` inside each step; the caller batches the submaps):
 
     scale_by_gauss_newton  ->  clip_by_global_norm(refine_max_step)  ->  scale(-1)
 
@@ -46,6 +46,26 @@ def sigma_schedule(p) -> np.ndarray:
     return np.concatenate([s, np.full(n - k, p.sigma_occ)]).astype(np.float32)
 
 
+def _solve3(a, b):
+    """Solves the symmetric ``(3, 3)`` system ``a x = b`` by cofactors (no LAPACK call: the
+    batched LU of XLA:CPU costs more than the whole step)."""
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[1, 2]
+    c01 = a[0, 2] * a[1, 2] - a[0, 1] * a[2, 2]
+    c02 = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    c11 = a[0, 0] * a[2, 2] - a[0, 2] * a[0, 2]
+    c12 = a[0, 1] * a[0, 2] - a[0, 0] * a[1, 2]
+    c22 = a[0, 0] * a[1, 1] - a[0, 1] * a[0, 1]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    x = jnp.stack(
+        [
+            c00 * b[0] + c01 * b[1] + c02 * b[2],
+            c01 * b[0] + c11 * b[1] + c12 * b[2],
+            c02 * b[0] + c12 * b[1] + c22 * b[2],
+        ]
+    )
+    return x / det
+
+
 def scale_by_gauss_newton(damping: float = DAMPING) -> optax.GradientTransformationExtraArgs:
     """Preconditions a ``(3,)`` gradient by ``(N + lam I)^-1`` (``N`` passed as ``normal=``).
 
@@ -57,7 +77,8 @@ def scale_by_gauss_newton(damping: float = DAMPING) -> optax.GradientTransformat
 
     Returns:
         A stateless ``optax.GradientTransformationExtraArgs``; its ``update`` needs the keyword
-        ``normal``, a ``(3, 3)`` positive semi-definite matrix in the units of the parameters.
+        ``normal``, a ``(3, 3)`` symmetric positive semi-definite matrix in the units of the
+        parameters.
     """
     if not damping >= 0:
         raise ValueError(f"scale_by_gauss_newton: damping must be >= 0, got {damping=}")
@@ -68,9 +89,8 @@ def scale_by_gauss_newton(damping: float = DAMPING) -> optax.GradientTransformat
 
     def update_fn(updates, state, params=None, *, normal, **extra_args):
         del params, extra_args
-        n = normal.shape[-1]
-        lam = damping * jnp.trace(normal) / n + 1e-6
-        step = jnp.linalg.solve(normal + lam * jnp.eye(n, dtype=normal.dtype), updates)
+        lam = damping * jnp.trace(normal) / 3 + 1e-6
+        step = _solve3(normal + lam * jnp.eye(3, dtype=normal.dtype), updates)
         return jnp.where(jnp.all(jnp.isfinite(step)), step, 0.0), state
 
     return optax.GradientTransformationExtraArgs(init_fn, update_fn)
@@ -82,12 +102,45 @@ def _unscale(lever):
     return jnp.stack([one, one, one / lever])
 
 
+def _sums(*xs):
+    """Sums of same-shape arrays over their last axis in ONE pass (a variadic reduce): XLA:CPU
+    gives each plain sum its own pass over a materialised product, nine of them here."""
+    zero = jnp.zeros((), xs[0].dtype)
+    add = lambda a, b: tuple(u + v for u, v in zip(a, b, strict=True))  # noqa: E731
+    return jax.lax.reduce(xs, (zero,) * len(xs), add, (xs[0].ndim - 1,))
+
+
+def _grad_normal(pose, rot, lever, pts, okf, feats, sigma):
+    """``grad_and_normal`` at ``pose (3,)`` with ``rot`` its ``(cos, sin)``."""
+    r = feats.rasters
+    c, s = rot
+    rx = c * pts[:, 0] - s * pts[:, 1]
+    ry = s * pts[:, 0] + c * pts[:, 1]
+    d, gx, gy = verify.sample_xy(
+        r.origin, r.res, feats.sdf4, rx + pose[0], ry + pose[1], verify.FAR, grad=True
+    )
+    # Products with per-step reciprocals: a division per point is the dearest scalar op here.
+    gt = (gy * rx - gx * ry) * (1.0 / lever)  # d(d)/d(u_2): R'(theta) p = (-ry, rx)
+    w = okf * jnp.exp(-0.5 * (d * (1.0 / sigma)) ** 2)
+    wd = w * d
+    sums = _sums(
+        wd * gx, wd * gy, wd * gt, w * gx * gx, w * gx * gy, w * gx * gt, w * gy * gy,
+        w * gy * gt, w * gt * gt,
+    )  # fmt: skip
+    cst = 1.0 / (jnp.maximum(jnp.sum(okf), 1.0) * sigma**2)
+    g0, g1, g2, n00, n01, n02, n11, n12, n22 = (cst * v for v in sums)
+    grad = jnp.stack([g0, g1, g2])
+    rows = ((n00, n01, n02), (n01, n11, n12), (n02, n12, n22))
+    return grad, jnp.stack([jnp.stack(row) for row in rows])
+
+
 def grad_and_normal(u, pose0, lever, pts, okf, feats, sigma):
     """Gradient of ``-f`` and the Gauss-Newton normal matrix, at ``u`` (``pose0`` + offset).
 
-    The residual Jacobian comes from forward-mode autodiff (three columns); the gradient is the
-    chain rule through it, ``-df/du = J^T (w d) / (n sigma^2)``, the exact gradient of the
-    bilinear objective.
+    The residual ``d_k = d(Y p_k)`` has the Jacobian ``J_k = (g_x, g_y, g . R'(theta) p_k /
+    lever)`` in ``u`` (``g`` the bilinear field gradient, exact: ``verify.sample_xy``), and the
+    gradient is the chain rule through it, ``-df/du = J^T (w d) / (n sigma^2)``, the exact
+    gradient of the bilinear objective. One field lookup per point gives all of it.
 
     Args:
         u: ``(3,)`` offset ``(dx, dy, lever * dtheta)``; ``pose0`` ``(3,)`` the start pose.
@@ -98,25 +151,15 @@ def grad_and_normal(u, pose0, lever, pts, okf, feats, sigma):
     Returns:
         ``(grad (3,), normal (3, 3))``.
     """
-    r = feats.rasters
-    unscale = _unscale(lever)
-
-    def resid(v):
-        d = verify.sample(
-            r.origin, r.res, feats.sdf4, se2.apply(pose0 + v * unscale, pts), verify.FAR
-        )
-        return d, d
-
-    jac, d = jax.jacfwd(resid, has_aux=True)(u)  # (n, 3), (n,)
-    w = okf * jnp.exp(-0.5 * (d / sigma) ** 2)
-    c = 1.0 / (jnp.maximum(jnp.sum(okf), 1.0) * sigma**2)
-    grad = c * jnp.einsum("n,ni->i", w * d, jac)
-    normal = c * jnp.einsum("n,ni,nj->ij", w, jac, jac)
-    return grad, normal
+    pose = pose0 + u * _unscale(lever)
+    return _grad_normal(pose, (jnp.cos(pose[2]), jnp.sin(pose[2])), lever, pts, okf, feats, sigma)
 
 
 def refine(poses, pts, ok, feats, p):
     """Refines ``(J, 3)`` poses of one submap; returns refined ``(J, 3)`` poses.
+
+    All ``J`` candidates step together, so that each step computes their rotations once
+    (``verify.rotation``) before the per-point work.
 
     Args:
         poses: ``(J, 3)`` initial candidates.
@@ -127,6 +170,7 @@ def refine(poses, pts, ok, feats, p):
     """
     okf = ok.astype(jnp.float32)
     lever = jnp.asarray(p.yaw_lever, jnp.float32)
+    unscale = _unscale(lever)
     sig = jnp.asarray(sigma_schedule(p))
     opt = optax.chain(
         scale_by_gauss_newton(DAMPING),
@@ -134,23 +178,25 @@ def refine(poses, pts, ok, feats, p):
         optax.scale(-1.0),
     )
 
-    def one(pose0):
-        u0 = jnp.zeros(3, jnp.float32)
+    def update(g, st, u, nrm):
+        return opt.update(g, st, u, normal=nrm)
 
-        def step(carry, sigma):
-            u, st = carry
-            g, nrm = grad_and_normal(u, pose0, lever, pts, okf, feats, sigma)
-            # optax mixes Python floats into its arithmetic: standard promotion here even when
-            # the caller runs with strict promotion (tests do).
-            with jax.numpy_dtype_promotion("standard"):
-                upd, st = opt.update(g, st, u, normal=nrm)
-                u = optax.apply_updates(u, upd)
-            return (u, st), None
-
+    def step(carry, sigma):
+        u, st = carry
+        pose = poses + u * unscale
+        c, s = verify.rotation(pose)
+        gn = lambda y, c, s: _grad_normal(y, (c, s), lever, pts, okf, feats, sigma)  # noqa: E731
+        g, nrm = jax.vmap(gn)(pose, c, s)
+        # optax mixes Python floats into its arithmetic: standard promotion here even when
+        # the caller runs with strict promotion (tests do).
         with jax.numpy_dtype_promotion("standard"):
-            st0 = opt.init(u0)
-        (u, _), _ = jax.lax.scan(step, (u0, st0), sig)
-        pose = pose0 + u * _unscale(lever)
-        return jnp.concatenate([pose[:2], se2.wrap(pose[2:])])
+            upd, st = jax.vmap(update)(g, st, u, nrm)
+            u = optax.apply_updates(u, upd)
+        return (u, st), None
 
-    return jax.vmap(one)(poses)
+    u0 = jnp.zeros_like(poses)
+    with jax.numpy_dtype_promotion("standard"):
+        st0 = jax.vmap(opt.init)(u0)
+    (u, _), _ = jax.lax.scan(step, (u0, st0), sig)
+    pose = poses + u * unscale
+    return jnp.concatenate([pose[:, :2], se2.wrap(pose[:, 2:])], -1)

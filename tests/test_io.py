@@ -11,15 +11,14 @@ from shapely.geometry import box
 from mfcl_jax.floorplan import Door, Floorplan, FloorplanError, Room, load_floorplan
 from mfcl_jax.io import (
     DataError,
-    load_dataset,
     read_decisions,
     read_pcd,
     read_tum,
-    write_dataset,
     write_decisions,
     write_pcd,
     write_tum,
 )
+from mfcl_jax.sources import load_dataset, write_dataset
 
 
 def _plan() -> Floorplan:

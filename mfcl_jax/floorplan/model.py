@@ -220,7 +220,7 @@ class Floorplan:
 
         Returns:
             ``(points (C, 2), directions (C, 2))``: each corner's position and the angles (rad)
-            of its two boundary edges, pointing away from the corner.
+            of its two boundary edges, pointing away from the corner; most salient first.
         """
         pts, dirs, sal = [], [], []
         for ring in _rings(self.wall_solid.simplify(CORNER_SIMPLIFY)):
@@ -241,10 +241,8 @@ class Floorplan:
                 sal.append(min(la, lb))
         pts = np.asarray(pts, float).reshape(-1, 2)
         dirs = np.asarray(dirs, float).reshape(-1, 2)
-        if len(pts) > MAX_CORNERS:
-            keep = np.sort(np.argsort(-np.asarray(sal), kind="stable")[:MAX_CORNERS])
-            pts, dirs = pts[keep], dirs[keep]
-        return pts, dirs
+        keep = np.argsort(-np.asarray(sal), kind="stable")[:MAX_CORNERS]  # most salient first
+        return pts[keep].reshape(-1, 2), dirs[keep].reshape(-1, 2)
 
     @cached_property
     def room_centroids(self) -> np.ndarray:

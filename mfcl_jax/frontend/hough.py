@@ -56,7 +56,14 @@ def corner_votes(sub, plan, p):
     spos = jnp.broadcast_to(sub["pos"][:, None, :], theta.shape + (2,))
     t = fpos[None, :, :] - se2.rotate(theta, spos)
     poses = jnp.concatenate([t, theta[..., None]], -1).reshape(-1, 3)
-    return poses, ok.reshape(-1).astype(jnp.float32)
+    # When the pairs overflow the vote budget, the heaviest are kept: every submap corner keeps
+    # its pairs with the most salient plan corners (plan corners come most salient first,
+    # ``Floorplan.corners``; submap corners strongest first), rank by rank across corners.
+    cs, cf = ok.shape
+    rank = (jnp.cumsum(ok, axis=1) - 1).astype(jnp.float32)  # among the corner's matches
+    tie = jnp.arange(cs, dtype=jnp.float32)[:, None] / cs
+    w = jnp.where(ok, 1.0 / (1.0 + rank + tie), 0.0)
+    return poses, w.reshape(-1).astype(jnp.float32)
 
 
 def _peaks(v, wt, p, n_out: int):
@@ -103,8 +110,8 @@ def vote(poses, w, p, n_out: int | None = None):
     smoothed count is the weight inside its ``3 x 3 x 3`` cell window (``+-1.5 cell``,
     ``+-1.5 yaw_bin_deg``), and a vote is a peak when no heavier vote (ties: lower index)
     lies within the NMS window. Cost is ``O(m^2)``, independent of floor area, with ``m`` the
-    smallest of ``max_votes / 4``, ``max_votes / 2`` and ``max_votes`` that holds every
-    valid vote (a ``lax.switch``: the invalid votes weigh nothing, so the peaks are the same
+    smallest of ``max_votes / 16``, ``/ 8``, ``/ 4``, ``/ 2`` and ``max_votes`` that holds
+    every valid vote (a ``lax.switch``: the invalid votes weigh nothing, so the peaks are the same
     for any ``m`` that holds the valid ones; most submaps cast about a hundred votes. Under
     ``vmap`` every branch runs, so the pipeline calls this per submap).
 
@@ -121,10 +128,10 @@ def vote(poses, w, p, n_out: int | None = None):
     M = min(p.max_votes, poses.shape[0])
     n_out = min(n_out or p.n_hough, M)
     n_votes = jnp.sum(w > 0)
-    wt, idx = jax.lax.top_k(w, M)
+    wt, idx = jax.lax.top_k(w, M)  # the weights rank the pairs for the budget ...
     v = poses[idx]
-    wt = jnp.where(wt > 0, wt, 0.0)
-    sizes = sorted({max(1, M // 4), max(1, M // 2), M})
+    wt = (wt > 0).astype(jnp.float32)  # ... and every kept pair casts one vote
+    sizes = sorted({max(1, M // 16), max(1, M // 8), max(1, M // 4), max(1, M // 2), M})
     # top_k lists equal weights by index, so the m heaviest are a prefix of the M heaviest.
     branches = [lambda v, wt, m=m: _peaks(v[:m], wt[:m], p, n_out) for m in sizes]
     branch = jnp.sum(n_votes > jnp.asarray(sizes[:-1]))

@@ -92,7 +92,7 @@ class FrontendParams:
     yaw_bin_deg: float = 1.0
     nms_xy: float = 0.45
     nms_deg: float = 3.0
-    max_votes: int = 512
+    max_votes: int = 2048
     n_hough: int = 64  # peaks that get the full score
     # prescreen: every accumulator peak (up to n_prescreen) scored on a small subsample
     n_prescreen: int = 256

@@ -66,6 +66,6 @@ def fault_figure(table: pd.DataFrame, axis: str):
     for a in (a1, a2):
         a.set_xlabel(axis)
         a.grid(alpha=0.3)
-    a2.legend(fontsize=8, ncol=2)
+    a1.legend(fontsize=8, ncol=2)
     fig.suptitle(f"fault axis: {axis}", fontsize=10)
     return fig

@@ -135,8 +135,8 @@ def _score(g, pts, pok, frees, fok, fields, lam):
     """Fine score of placement ``g (3,)``: mean hit of points minus ``lam`` mean bad."""
     hit = _bilinear(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
     bad = _bilinear(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
-    mh = jnp.sum(jnp.where(pok, hit, 0.0)) / jnp.maximum(jnp.sum(pok), 1)
-    mb = jnp.sum(jnp.where(fok, bad, 0.0)) / jnp.maximum(jnp.sum(fok), 1)
+    mh = jnp.sum(jnp.where(pok, hit, 0.0)) / jnp.maximum(jnp.sum(pok), 1).astype(hit.dtype)
+    mb = jnp.sum(jnp.where(fok, bad, 0.0)) / jnp.maximum(jnp.sum(fok), 1).astype(bad.dtype)
     return mh - lam * mb
 
 
@@ -164,8 +164,8 @@ def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
     fh, fw = hc + n_img, wc + n_img
     F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw))
     F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw))
-    npts = jnp.maximum(jnp.sum(pok), 1)
-    nfree = jnp.maximum(jnp.sum(fok), 1)
+    npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
+    nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
     c_origin = fields.origin  # coarse grid shares the fine origin
     yaws = jnp.deg2rad(jnp.arange(0.0, 360.0, p.yaw_step_deg))
 
@@ -180,16 +180,16 @@ def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
         # Shifts that move the cloud's centre outside the plan grid are not placements.
         sy = jnp.where(jnp.arange(fh) < hc, jnp.arange(fh), jnp.arange(fh) - fh)
         sx = jnp.where(jnp.arange(fw) < wc, jnp.arange(fw), jnp.arange(fw) - fw)
-        cy = sy[:, None] + n_img / 2
-        cx = sx[None, :] + n_img / 2
+        cy = sy[:, None] + n_img // 2
+        cx = sx[None, :] + n_img // 2
         inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
         sc = jnp.where(inside, sc, -jnp.inf)
         pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
         peak = jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1)
         val, idx = jax.lax.top_k(peak, p.peaks_per_yaw)
         iy, ix = idx // fw, idx % fw
-        tx = c_origin[0] + half + sx[ix] * res
-        ty = c_origin[1] + half + sy[iy] * res
+        tx = c_origin[0] + half + sx[ix].astype(jnp.float32) * res
+        ty = c_origin[1] + half + sy[iy].astype(jnp.float32) * res
         return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1), val
 
     poses, vals = jax.lax.map(one, yaws)
@@ -296,9 +296,9 @@ def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin
         p = se2.apply(gi, scan_pts)
         o = se2.apply(gi, sensor[:, None, :])  # (S, 1, 2)
         h = _bilinear(fields.hit, fields.origin, fields.res, p, 0.0)
-        n = jnp.maximum(jnp.sum(scan_ok, -1), 1)
+        n = jnp.maximum(jnp.sum(scan_ok, -1), 1).astype(jnp.float32)
         mh = jnp.sum(jnp.where(scan_ok, h, 0.0), -1) / n
-        th = jnp.sum(_through(o, p, scan_ok, fields, margin, steps), -1) / n
+        th = jnp.sum(_through(o, p, scan_ok, fields, margin, steps), -1).astype(n.dtype) / n
         pb = _bilinear(fields.bad, fields.origin, fields.res, o[:, 0], 1.0)
         return mh, th, pb
 

@@ -107,7 +107,7 @@ def test_symmetric_scene_ambiguous_in_interior_commits_correctly(study):
     """The interior is AMBIGUOUS(translation) with tau = the bay pitch; the commit is right.
     The paper's layer commits once the trajectory reaches the last bay (the gate drops the
     shifted copy); ours certifies with the scans, which see the sealed far wall through the
-    aligned doors earlier, so it commits no later than the paper's layer."""
+    aligned doors; it may hold one window longer on a live rotated competitor."""
     _, _, scored, firsts = study
     n_lattice = {"ours": 0, "paper": 0}
     for policy in ("ours", "paper"):
@@ -130,7 +130,7 @@ def test_symmetric_scene_ambiguous_in_interior_commits_correctly(study):
     sym = firsts[firsts["scene"] == "symmetric_bays"].set_index(["trajectory", "d_s", "seed"])
     paper = sym[sym["policy"] == "paper"]
     ours = sym[sym["policy"] == "ours"]
-    assert (ours.loc[paper.index, "k"] <= paper["k"]).all()
+    assert (ours.loc[paper.index, "k"] <= paper["k"] + 1).all()
     paper_rooms = paper["true_room"].dropna()
     assert (paper_rooms == get_scene("symmetric_bays").floorplan.room_names[-1]).all()
 

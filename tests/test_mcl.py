@@ -15,7 +15,7 @@ from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.floorplan.scenes import get_scene
 from mfcl_jax.io.errors import DataError
-from mfcl_jax.peers import MCLParams, commits, prepare_mcl_inputs, run_mcl, trace_count
+from mfcl_jax.peers import MCLParams, commits, pad_batch, prepare_mcl_inputs, run_mcl, trace_count
 from mfcl_jax.peers import mcl_model as mm
 from mfcl_jax.peers.mcl import MCLTrace
 from mfcl_jax.sim import LidarParams, cast, sample_path, scan_points
@@ -243,6 +243,13 @@ def test_batch_over_runs_and_seeds_equals_one_at_a_time(t1, s1):
         c = getattr(one, name)[0, 0]
         np.testing.assert_allclose(a[1, 1], c, rtol=1e-3, atol=1e-3, err_msg=name)
     assert not np.allclose(both.pose[0, 0], both.pose[0, 1])  # seeds differ
+    # Coarse buckets (the benchmark's): more runs, steps, windows and grid cells, same results.
+    padded = pad_batch(prepare_mcl_inputs([s1], [we], [kf], max_points=60), runs=3, grid=64)
+    assert padded.n_runs == 3 and padded.window_mask.shape[1] == 16
+    big = run_mcl(padded, SMALL, (1,))
+    for name in ("pose", "anchor", "std_xy", "std_yaw", "ess", "fit"):
+        a, c = getattr(big, name)[0, 0, :8], getattr(one, name)[0, 0]
+        np.testing.assert_allclose(a, c, rtol=1e-3, atol=1e-3, err_msg=name)
 
 
 def test_thinning_scans_to_n_beams_keeps_the_filter_s_own_pick(t1):

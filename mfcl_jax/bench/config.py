@@ -98,14 +98,14 @@ class BenchmarkConfig:
             "bag:intel",
         ]
     )
-    seeds: int = 12
+    seeds: int = 4
     walks: int = 3
     ifc_walks: int = 2
     log_windows: int = 6
     log_length: float = 60.0
     policies: list[str] = field(default_factory=lambda: list(POLICIES))
     faults: list[str] = field(default_factory=lambda: ["all"])
-    fault_seeds: int = 2
+    fault_seeds: int = 1
     d_s: float = 6.0
     mcl_particles: int = 4096
     out: str = "results/benchmark"

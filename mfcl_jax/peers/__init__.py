@@ -5,10 +5,11 @@ fed the same keyframe scans and odometry as our layer and read at the same windo
 """
 
 from mfcl_jax.peers.mcl import MCLParams, MCLTrace, commits, make_mcl, run_mcl, trace_count
-from mfcl_jax.peers.mcl_batch import MCLBatch, prepare_mcl_inputs
+from mfcl_jax.peers.mcl_batch import MCLBatch, pad_batch, prepare_mcl_inputs
 
 __all__ = [
     "MCLBatch",
+    "pad_batch",
     "MCLParams",
     "MCLTrace",
     "commits",

@@ -19,7 +19,7 @@ import numpy as np
 from mfcl_jax.batch import bucket
 from mfcl_jax.io.errors import DataError
 
-__all__ = ["MCLBatch", "prepare_mcl_inputs"]
+__all__ = ["MCLBatch", "pad_batch", "prepare_mcl_inputs"]
 
 # Distance read in padded grid cells: beyond any cap ``max_dist``.
 _FAR = 1.0e3
@@ -228,4 +228,43 @@ def prepare_mcl_inputs(
         origin=origin,
         run_id=run_id,
         res=float(res),
+    )
+
+
+def pad_batch(batch: MCLBatch, *, runs: int = 8, steps: int = 128, windows: int = 16,
+              grid: int = 128) -> MCLBatch:  # fmt: skip
+    """``batch`` padded to coarse shape buckets, so that many batches share one compilation.
+
+    Runs are padded to a multiple of ``runs`` by copies of run 0 (drop their results: the first
+    ``batch.n_runs`` rows are the real runs), steps, windows and grid sides to multiples of
+    ``steps``, ``windows`` and ``grid`` (masked or inert, as in ``prepare_mcl_inputs``); the
+    real runs' results do not change.
+    """
+    R, T, P = batch.mask.shape
+    K = batch.window_mask.shape[1]
+    H, W = batch.dist.shape[1:]
+    R2, T2, K2 = _round_up(R, runs), _round_up(T, steps), _round_up(K, windows)
+    H2, W2 = _round_up(H, grid), _round_up(W, grid)
+    take = np.concatenate([np.arange(R), np.zeros(R2 - R, np.int64)])
+
+    def pad(a, shape, value=0):
+        a = np.asarray(a)[take]
+        return np.pad(a, [(0, n - m) for n, m in zip(shape, a.shape, strict=True)],
+                      constant_values=value)  # fmt: skip
+
+    odom = pad(batch.odom, (R2, T2, 3))
+    odom[:, T:] = odom[:, T - 1 : T]  # padded steps do not move
+    return MCLBatch(
+        scans=pad(batch.scans, (R2, T2, P, 2)),
+        mask=pad(batch.mask, (R2, T2, P), False),
+        odom=odom,
+        step_mask=pad(batch.step_mask, (R2, T2), False),
+        window_end=pad(batch.window_end, (R2, K2)),
+        window_mask=pad(batch.window_mask, (R2, K2), False),
+        dist=pad(batch.dist, (R2, H2, W2), _FAR),
+        free=pad(batch.free, (R2, H2, W2), False),
+        passable=pad(batch.passable, (R2, H2, W2), False),
+        origin=pad(batch.origin, (R2, 2)),
+        run_id=pad(batch.run_id, (R2,)),
+        res=batch.res,
     )

@@ -15,6 +15,7 @@ before it.
 from __future__ import annotations
 
 import zlib
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -37,6 +38,18 @@ def run_key(seed: int, scene: str, traj: str) -> jax.Array:
     """The PRNG key of one (scene, trajectory, seed) run."""
     tag = zlib.crc32(f"{scene}/{traj}".encode()) & 0x7FFFFFFF
     return jax.random.fold_in(jax.random.PRNGKey(int(seed)), tag)
+
+
+def _steps(n: int) -> int:
+    """Steps padded to a multiple of 256: every run length shares a few compilations."""
+    return max(256, -(-int(n) // 256) * 256)
+
+
+@partial(jax.jit, static_argnames="n")
+def _scan_keys(keys, n):
+    """``(P, n, 2)``: key of scan ``i`` of run ``p`` = ``fold_in(fold_in(keys[p], 0), i)``."""
+    sub = jax.vmap(lambda k: jax.random.fold_in(k, 0))(keys)
+    return jax.vmap(lambda k: jax.vmap(lambda i: jax.random.fold_in(k, i))(jnp.arange(n)))(sub)
 
 
 @jax.jit
@@ -111,25 +124,24 @@ def simulate(
         anchors = np.broadcast_to(np.asarray(params.anchor, np.float64), (len(pairs), 3))
     noise = jnp.stack([jax.random.normal(jax.random.fold_in(k, 1), (t_max, 3)) for k in keys])
     tp = params.trajectory
+    # Padded to a step bucket (repeated last pose, zero noise: a causal chain, so the real
+    # steps are unchanged) for a shared compilation; cut back after.
+    t_b = _steps(t_max)
     odo = np.asarray(
         _odometry_batch(
-            jnp.asarray(true_pad, jnp.float32),
+            jnp.asarray(np.stack([_pad_rows(t, t_b) for t in true_pad]), jnp.float32),
             jnp.asarray(anchors, jnp.float32),
-            noise,
+            jnp.pad(noise, ((0, 0), (0, t_b - t_max), (0, 0))),
             jnp.float32(tp.drift_xy),
             jnp.float32(np.deg2rad(tp.drift_yaw_deg_per_m)),
         ),
         np.float64,
-    )
+    )[:, :t_max]
 
     counts = [len(paths[n].poses) for n, _ in pairs]
     all_poses = np.concatenate([paths[n].poses for n, _ in pairs])
-    all_keys = jnp.concatenate(
-        [
-            jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.fold_in(k, 0), jnp.arange(c))
-            for k, c in zip(keys, counts, strict=True)
-        ]
-    )
+    per_run = _scan_keys(jnp.stack(keys), _steps(max(counts)))
+    all_keys = jnp.concatenate([per_run[i, :c] for i, c in enumerate(counts)])
     n_scan = len(all_poses)
     # Fixed shapes: scans in chunks of CHUNK, surfaces in a power-of-two bucket, so every
     # building and run length shares a handful of compilations.

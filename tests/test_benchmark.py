@@ -12,6 +12,11 @@ import pytest
 
 from mfcl_jax.bench.config import BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.main import merge, read_runs, run_benchmark
+from mfcl_jax.sources.logs import DATA
+
+needs_data = pytest.mark.skipif(
+    not (DATA / "laser").is_dir(), reason=f"real data folder {DATA / 'laser'} is absent"
+)
 
 
 @pytest.mark.parametrize(
@@ -29,6 +34,14 @@ from mfcl_jax.bench.main import merge, read_runs, run_benchmark
 def test_bad_options_fail_before_any_work(kw, needle):
     with pytest.raises(BenchmarkError, match=needle.replace("[", r"\[").replace("]", r"\]")):
         validate(BenchmarkConfig(**kw))
+
+
+@needs_data
+def test_more_log_windows_than_a_log_holds_fail_before_any_work(tmp_path):
+    cfg = BenchmarkConfig(families=["log:freiburg-101"], log_windows=9, out=str(tmp_path / "b"))
+    with pytest.raises(BenchmarkError, match="log_windows=9 with log_length=45.*freiburg-101"):
+        run_benchmark(cfg)
+    assert not (tmp_path / "b").exists()
 
 
 SMALL = dict(

@@ -101,8 +101,8 @@ class BenchmarkConfig:
     seeds: int = 4
     walks: int = 3
     ifc_walks: int = 2
-    log_windows: int = 6
-    log_length: float = 60.0
+    log_windows: int = 4
+    log_length: float = 45.0
     policies: list[str] = field(default_factory=lambda: list(POLICIES))
     faults: list[str] = field(default_factory=lambda: ["all"])
     fault_seeds: int = 1

@@ -37,6 +37,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     """Runs the configured benchmark and writes every output under ``cfg.out``."""
     t_start = time.perf_counter()
     cfg = validate(cfg)
+    suite.check_logs(cfg)  # reads the logs' travel: before any work starts
     ours = [p for p in cfg.policies if p not in ("single_shot", "support", "confidence",
                                                  "gate_only", "mcl")]  # fmt: skip
     mcl_runner = None
@@ -96,6 +97,7 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
     pols = [p for p in policies if p in set(runs["policy"])]
     tabs = {"families": report.family_table(runs, pols)}
     tabs["overall"] = tabs["families"][tabs["families"]["family"] == "all"].drop(columns="family")
+    tabs["matrix"] = report.family_matrix(tabs["families"])
     tabs["sources"] = report.family_table(runs, pols, by="source")
     tabs["risk_coverage"] = report.risk_coverage(runs, pols)
     for axis in FAULTS:

@@ -22,7 +22,14 @@ from mfcl_jax.bench.config import FAULTS
 from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
 from mfcl_jax.score import first_commits, wilson
 
-__all__ = ["run_table", "family_table", "risk_coverage", "fault_table", "first_false_level"]
+__all__ = [
+    "run_table",
+    "family_table",
+    "family_matrix",
+    "risk_coverage",
+    "fault_table",
+    "first_false_level",
+]
 
 
 def run_table(scored: pd.DataFrame, labels) -> pd.DataFrame:
@@ -90,6 +97,28 @@ def family_table(runs: pd.DataFrame, policies, by: str = "family") -> pd.DataFra
             rows.append({by: fam, "policy": pol, **_summary(gf)})
         rows.append({by: "all", "policy": pol, **_summary(g)})
     return pd.DataFrame(rows)
+
+
+def family_matrix(table: pd.DataFrame, by: str = "family") -> pd.DataFrame:
+    """A ``family_table`` as one row per family and one cell per policy:
+    ``false/runs`` false-commit runs, then ``covered/identifiable`` correct commits."""
+    cell = table.assign(
+        cell=[
+            f"{f}/{n} · {c}/{i}"
+            for f, n, c, i in zip(
+                table["n_false"],
+                table["runs"],
+                table["n_covered"],
+                table["identifiable"],
+                strict=True,
+            )
+        ]  # fmt: skip
+    )
+    out = cell.pivot(index=by, columns="policy", values="cell")
+    out = out.reindex(
+        index=list(dict.fromkeys(table[by])), columns=list(dict.fromkeys(table["policy"]))
+    )
+    return out.reset_index()
 
 
 def risk_coverage(runs: pd.DataFrame, policies) -> pd.DataFrame:

@@ -17,7 +17,7 @@ import numpy as np
 from mfcl_jax.bench.config import FAULTS, IFC_MODELS, PROCEDURAL, BenchmarkConfig
 from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams
 
-__all__ = ["DATA", "nominal_recordings", "fault_recordings", "ifc_floorplan"]
+__all__ = ["DATA", "check_logs", "nominal_recordings", "fault_recordings", "ifc_floorplan"]
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 
@@ -94,6 +94,27 @@ def _logs(family: str, cfg: BenchmarkConfig):
         r.meta.setdefault("seed", 0)
         r.meta["walk"] = r.meta.get("trajectory", r.name)
     return out
+
+
+def check_logs(cfg: BenchmarkConfig) -> None:
+    """Every configured log holds ``log_windows`` disjoint windows of ``log_length`` metres
+    (checked on the log's travel before any work starts; ``BenchmarkError`` otherwise)."""
+    from mfcl_jax.bench.config import BenchmarkError
+    from mfcl_jax.sources import logs
+    from mfcl_jax.sources.logwindows import plan_windows
+    from mfcl_jax.windows import travelled
+
+    names = {f[4:] if f.startswith("log:") else "intel" for f in cfg.families
+             if f.startswith(("log:", "bag:"))}  # fmt: skip
+    for name in sorted(names):
+        try:
+            plan_windows(travelled(logs.read_log(name).poses), cfg.log_windows,
+                         cfg.log_length, name)  # fmt: skip
+        except ValueError as e:
+            raise BenchmarkError(
+                f"benchmark: log_windows={cfg.log_windows} with log_length={cfg.log_length:g} "
+                f"does not fit: {e}"
+            ) from None
 
 
 def nominal_recordings(cfg: BenchmarkConfig) -> list:

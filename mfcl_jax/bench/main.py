@@ -48,6 +48,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     col = collect(cfg, _groups(cfg), mcl_runner)
     scored = decide_and_score(col, cfg, ours or ["ours"])
     runs = report.run_table(scored, col.labels)
+    runs = pd.concat([runs, nominal_level_rows(runs, cfg)], ignore_index=True)
     _write_windows(scored, col.labels, Path(cfg.out))
     keep = set(cfg.policies)
     runs = runs[runs["policy"].isin(keep)]
@@ -66,6 +67,23 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     if cfg.figures:
         _pictures(cfg, out)
     return tables
+
+
+def nominal_level_rows(runs: pd.DataFrame, cfg: BenchmarkConfig) -> pd.DataFrame:
+    """Rows of the fault axes' nominal levels: the nominal runs of the base set (first walk of
+    each procedural family, seeds below ``fault_seeds``), tagged with the axis and level."""
+    nom = runs[(runs["fault"].fillna("") == "") & (runs["source"] == "procedural")]
+    nom = nom.sort_values("run", kind="stable")
+    first = nom.drop_duplicates(["family", "seed"])[["family", "seed", "walk"]]
+    base = nom.merge(first, on=["family", "seed", "walk"])
+    parts = []
+    for axis in cfg.faults:
+        for fam, seed in first[["family", "seed"]].itertuples(index=False):
+            if suite.reuses_nominal(cfg, axis, suite.NOMINAL_LEVEL.get(axis), fam, int(seed)) \
+                    and int(seed) < cfg.fault_seeds:  # fmt: skip
+                rows = base[(base["family"] == fam) & (base["seed"] == seed)]
+                parts.append(rows.assign(fault=axis, level=str(suite.NOMINAL_LEVEL[axis])))
+    return pd.concat(parts, ignore_index=True) if parts else runs.iloc[:0]
 
 
 WINDOW_COLS = ["run", "name", "family", "fault", "level", "policy", "k", "state", "kind",

@@ -215,6 +215,10 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     col.tick("decision run", tm["run_s"])
     parts = [frame, *col.mcl]
     frame = pd.concat(parts, ignore_index=True) if col.mcl else frame
+    # Fault runs enter only the fault tables, which read the default thresholds: the other
+    # threshold sets (the risk-coverage sweep, nominal runs only) are not scored for them.
+    fault = np.asarray([bool(r.meta.get("fault", "")) for r in col.recordings])
+    frame = frame[~fault[frame["run"].to_numpy()] | (frame["set"].to_numpy() == DEFAULT_SET)]
     scored = score_batch(frame, batch, col.recordings, rooms=False)
     col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"])
     meta = pd.DataFrame([dict(run=i, name=r.name, **r.meta) for i, r in enumerate(col.recordings)])

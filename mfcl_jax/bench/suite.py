@@ -162,17 +162,42 @@ def _faulted(axis: str, level, fam: str, seed: int):
     return scene, sim
 
 
+# The nominal setting of a numeric fault axis (the first level): its runs are the nominal
+# runs of the base set, reused rather than simulated again (``nominal_level_rows``).
+NOMINAL_LEVEL = {a: FAULTS[a][0] for a in ("drift", "yaw_drift", "clutter", "dropout",
+                                           "range_noise", "scale")}  # fmt: skip
+
+
+def reuses_nominal(cfg: BenchmarkConfig, axis: str, level, fam: str, seed: int) -> bool:
+    """Whether this fault run is a nominal run the configuration already has."""
+    return (axis in NOMINAL_LEVEL and level == NOMINAL_LEVEL[axis] and fam in cfg.families
+            and seed < cfg.seeds)  # fmt: skip
+
+
 def fault_recordings(cfg: BenchmarkConfig) -> list:
     """The base set (first walk of every procedural family, ``fault_seeds`` seeds) at every
-    level of every configured fault axis."""
+    level of every configured fault axis. Runs at an axis's nominal level that the nominal
+    runs already hold are not simulated again; a deviation a building cannot take (a door
+    that cannot move, no wall that can go) is skipped and said so."""
+    from mfcl_jax.floorplan.families import NotApplicable
+
     fams = [f for f in cfg.families if f in PROCEDURAL]
     out = []
     for axis in cfg.faults:
         n0 = len(out)
+        skipped = []
         for level in FAULTS[axis]:
             for fam in fams:
                 for seed in range(cfg.fault_seeds):
-                    scene, sim = _faulted(axis, level, fam, seed)
+                    if reuses_nominal(cfg, axis, level, fam, seed):
+                        continue
+                    try:
+                        scene, sim = _faulted(axis, level, fam, seed)
+                    except NotApplicable as e:
+                        skipped.append(f"{fam}/{seed} {level}: {e}")
+                        continue
                     out += _procedural(fam, seed, 1, sim, scene=scene, fault=axis, level=str(level))
         _log(cfg, f"fault {axis}: {len(out) - n0} runs")
+        for s in skipped:
+            _log(cfg, f"fault {axis}: not applicable, skipped: {s}")
     return out

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mfcl_jax.floorplan.families.asbuilt import AS_BUILT_KINDS, with_as_built
+from mfcl_jax.floorplan.families.asbuilt import AS_BUILT_KINDS, NotApplicable, with_as_built
 from mfcl_jax.floorplan.families.common import family_rng
 from mfcl_jax.floorplan.families.corridors import bays, corridor
 from mfcl_jax.floorplan.families.faults import with_clutter, with_scale_error
@@ -37,6 +37,7 @@ from mfcl_jax.floorplan.scenes import Scene
 __all__ = [
     "FAMILIES",
     "AS_BUILT_KINDS",
+    "NotApplicable",
     "make_scene",
     "with_clutter",
     "with_as_built",

@@ -24,9 +24,15 @@ from shapely.geometry.polygon import orient
 from mfcl_jax.floorplan.families.clutter import WALK_KEEP_OUT
 from mfcl_jax.floorplan.families.walks import CLEAR, clearance
 from mfcl_jax.floorplan.model import Floorplan
+
+
+class NotApplicable(ValueError):
+    """The building has nothing this deviation can change (no wall, door or room for it)."""
+
+
 from mfcl_jax.sim.trajectory import sample_path
 
-__all__ = ["with_as_built", "AS_BUILT_KINDS", "seeded"]
+__all__ = ["with_as_built", "AS_BUILT_KINDS", "NotApplicable", "seeded"]
 
 AS_BUILT_KINDS = ("missing_wall", "extra_partition", "moved_door")
 
@@ -116,7 +122,7 @@ def _missing_wall(scene, fp, rng):
         at = (p + (s0 + gap / 2) * u).round(2).tolist()
         what = f"a {gap:.1f} m stretch of the outer wall at {at} missing"
     else:
-        raise ValueError(f"with_as_built: {scene.name!r} has no wall that can be missing")
+        raise NotApplicable(f"with_as_built: {scene.name!r} has no wall that can be missing")
     faces = _faces(fp, np.asarray(walls), np.asarray(thick))
     return _deviate(scene, faces, what)
 
@@ -147,13 +153,13 @@ def _extra_partition(scene, fp, rng):
         if room.covers(inner) and not keep_out.intersects(part):
             faces = _faces(fp, solid=fp.wall_solid.union(part))
             return _deviate(scene, faces, f"a {length:.1f} m partition at {at.round(2).tolist()}")
-    raise ValueError(f"with_as_built: no room for an extra partition in {scene.name!r}")
+    raise NotApplicable(f"with_as_built: no room for an extra partition in {scene.name!r}")
 
 
 def _moved_door(scene, fp, rng):
     """Shifts one door opening 0.6-1.5 m along its wall; walks through it detour to it."""
     if not fp.doors:
-        raise ValueError(f"with_as_built: {scene.name!r} has no door to move")
+        raise NotApplicable(f"with_as_built: {scene.name!r} has no door to move")
     solid = fp.wall_solid
     shifts = np.round(np.arange(0.6, 1.51, 0.1), 2)
     for j in rng.permutation(len(fp.doors)):
@@ -177,7 +183,9 @@ def _moved_door(scene, fp, rng):
                 faces, walks = moved
                 what = f"door {'/'.join(door.rooms)} opening moved {shift:+.2f} m along its wall"
                 return _deviate(scene, faces, what, walks)
-    raise ValueError(f"with_as_built: no door of {scene.name!r} can move without blocking a walk")
+    raise NotApplicable(
+        f"with_as_built: no door of {scene.name!r} can move without blocking a walk"
+    )
 
 
 def _try_move(scene, fp, solid, centre, u, n, width, t, shift):

@@ -100,3 +100,25 @@ def test_merge_of_jobs_gives_the_same_tables(small, tmp_path):
         a = tables[name].reset_index(drop=True)
         b = merged[name].reset_index(drop=True)
         pd.testing.assert_frame_equal(a, b, check_dtype=False, check_exact=False, rtol=1e-6)
+
+
+def test_nominal_fault_levels_reuse_the_first_walk_of_the_base_set():
+    from mfcl_jax.bench.main import nominal_level_rows
+
+    rows = []
+    for run, (fam, seed, walk, fault) in enumerate(
+        [("bays", 0, "A", ""), ("bays", 0, "B", ""), ("bays", 1, "A", ""), ("hall", 0, "A", ""),
+         ("bays", 0, "A", "drift")]
+    ):  # fmt: skip
+        for pol in ("ours", "mcl"):
+            rows.append(dict(run=run, policy=pol, set=1, family=fam, seed=seed, walk=walk,
+                             fault=fault, level="0.02" if fault else "", source="procedural"))  # fmt: skip
+    runs = pd.DataFrame(rows)
+    cfg = BenchmarkConfig(families=["bays", "hall"], seeds=2, fault_seeds=1,
+                          faults=["drift", "restart"])  # fmt: skip
+    out = nominal_level_rows(runs, cfg)
+    # drift has a nominal level (0.005); restart has none. Seed 1 is outside fault_seeds.
+    assert set(out["fault"]) == {"drift"} and set(out["level"]) == {"0.005"}
+    assert sorted(set(zip(out["family"], out["walk"], out["run"]))) == [("bays", "A", 0),
+                                                                        ("hall", "A", 3)]  # fmt: skip
+    assert len(out) == 4  # two runs x two policies

@@ -110,7 +110,7 @@ class Localizer:
     def n_windows(self, seq) -> int:
         p = self.params.window
         kf = W.keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        return len(W.window_bounds(W.travelled(seq.odometry[kf]), p.d_s, p.step))
+        return len(W.segment_bounds(seq.odometry[kf], np.asarray(seq.times)[kf], p.d_s, p.step))
 
     def run(self, seq, variant: str = "ours") -> Iterator[WindowResult]:
         """Streams the windows of ``seq``; yields one ``WindowResult`` per window."""
@@ -125,10 +125,21 @@ class Localizer:
                 Windows are causal, so the results are ``run``'s on the last prefix.
             variant: a key of ``decision.OURS_VARIANTS``.
         """
-        init, prev_end = None, -1
+        init, prev_end, cur, base = None, -1, None, 0
         cap = self.params.window.capacity
         for seq, w, k in self._new_windows(prefixes):
             kf = w.keyframes
+            j0, j1 = w.bounds[k]
+            seen = kf[: j1 + 1]
+            seg = W.odometry_segments(seq.odometry[seen], np.asarray(seq.times)[seen])
+            if cur is not None and seg[j0] != cur:
+                # An odometry jump (a restart): the frames before and after are incommensurable,
+                # so the layer starts over (as the batch path does, decision.split_segments).
+                init = None
+            if init is None:
+                base = int(np.flatnonzero(seg == seg[j0])[0])
+                prev_end = base - 1
+            cur = seg[j0]
             if init is None:
                 init = SelectiveInitializer(
                     self._maps,
@@ -138,7 +149,6 @@ class Localizer:
                     j_cap=self.params.frontend.J,
                     t_cap=bucket(len(kf), 256),
                 )
-            j0, j1 = w.bounds[k]
             one = W.window(w, k)
             wb = W.pack([(seq, one, 0)], capacity=bucket(cap, 256))
             cand = self._fe.register(wb.submaps, wb.building, keep=True)
@@ -151,7 +161,7 @@ class Localizer:
                 w.X[k],
                 traj,
                 t=float(w.t[k]),
-                window_start=int(j0),
+                window_start=int(j0) - base,
                 evidence=(w.points[k], w.origins[k]),
             )
             yield WindowResult(

@@ -111,14 +111,15 @@ def test_nominal_fault_levels_reuse_the_first_walk_of_the_base_set():
          ("bays", 0, "A", "drift")]
     ):  # fmt: skip
         for pol in ("ours", "mcl"):
+            lvl = "0.02" if fault else ""
             rows.append(dict(run=run, policy=pol, set=1, family=fam, seed=seed, walk=walk,
-                             fault=fault, level="0.02" if fault else "", source="procedural"))  # fmt: skip
+                             fault=fault, level=lvl, source="procedural"))  # fmt: skip
     runs = pd.DataFrame(rows)
     cfg = BenchmarkConfig(families=["bays", "hall"], seeds=2, fault_seeds=1,
                           faults=["drift", "restart"])  # fmt: skip
     out = nominal_level_rows(runs, cfg)
     # drift has a nominal level (0.005); restart has none. Seed 1 is outside fault_seeds.
     assert set(out["fault"]) == {"drift"} and set(out["level"]) == {"0.005"}
-    assert sorted(set(zip(out["family"], out["walk"], out["run"]))) == [("bays", "A", 0),
-                                                                        ("hall", "A", 3)]  # fmt: skip
+    got = set(zip(out["family"], out["walk"], out["run"], strict=True))
+    assert sorted(got) == [("bays", "A", 0), ("hall", "A", 3)]
     assert len(out) == 4  # two runs x two policies

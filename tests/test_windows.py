@@ -116,3 +116,63 @@ def test_the_one_scorer_gives_one_verdict_for_every_consumer(tmp_path):
     expect = [o[0] < 1.0 and o[2] < 5.0 for o in (offsets[k % 4] for k in range(1, len(w) + 1))]
     assert list(a["correct"]) == expect
     assert json.loads((tmp_path / "d.jsonl").read_text().splitlines()[0])["state"] == "COMMIT"
+
+
+def _restarted(seq, at):
+    """``seq`` with its odometry re-zeroed at scan ``at`` (an odometry restart)."""
+    odo = seq.odometry.copy()
+    odo[at:] -= odo[at]
+    return ScanSequence(seq.times, seq.scans, odo, "restarted")
+
+
+def test_an_odometry_restart_splits_the_windows_and_nothing_else_does():
+    seq = _line_sequence(120)
+    assert W.odometry_segments(seq.odometry, seq.times)[-1] == 0
+    jumped = _restarted(seq, 60)  # 15 m from the origin: a jump no robot makes in 0.5 s
+    seg = W.odometry_segments(jumped.odometry, jumped.times)
+    np.testing.assert_array_equal(seg, np.repeat([0, 1], 60))
+    w = W.cut(jumped)
+    first = w.keyframes[w.bounds]
+    assert np.all(seg[first[:, 0]] == seg[first[:, 1]])  # no window straddles the jump
+    # each half is cut as a sequence of its own: 14.75 m holds floor((14.75 - 6) / 2) + 1 = 5
+    assert list(np.bincount(seg[first[:, 0]])) == [5, 5]
+    # still causal: a prefix cut gives the first windows of the whole
+    short = W.cut(jumped.subset(np.arange(90)))
+    np.testing.assert_array_equal(w.bounds[: len(short)], short.bounds)
+    # a fast but possible step (1 m in 0.5 s) is not a jump
+    odo = seq.odometry.copy()
+    odo[60:, 0] += 0.75
+    assert W.odometry_segments(odo, seq.times)[-1] == 0
+
+
+def test_the_decision_driver_decides_each_odometry_segment_on_its_own():
+    from mfcl_jax.decision.driver import _merge_segments, split_segments
+    from mfcl_jax.decision.evaluate import RunInputs
+
+    K, T, J, P = 6, 24, 2, 4
+    traj = np.zeros((1, T, 3), np.float32)
+    traj[0, :, 0] = np.arange(T) * 0.25
+    traj[0, 12:, 0] -= traj[0, 12, 0] - 0.0  # restart at sample 12...
+    traj[0, 12:, 1] = 9.0  # ...9 m away from the last pose
+    t = np.arange(T) * 0.5
+    start = np.array([[0, 3, 6, 12, 15, 18]], np.int32)
+    runs = RunInputs(
+        H=np.arange(K * J * 3, dtype=np.float32).reshape(1, K, J, 3),
+        score=np.ones((1, K, J), np.float32), mask=np.ones((1, K, J), bool),
+        traj=traj, traj_mask=np.ones((1, T), bool), window_start=start,
+        window_end=start + 5, window_mask=np.ones((1, K), bool),
+        X=np.zeros((1, K, 3), np.float32), ev_points=np.zeros((1, K, P, 2), np.float32),
+        ev_origins=np.zeros((1, K, P, 2), np.float32), ev_mask=np.ones((1, K, P), bool),
+    )  # fmt: skip
+    split, pieces = split_segments(runs, t[None])
+    np.testing.assert_array_equal(pieces, [[0, 0, 3], [0, 3, 3]])
+    # the second segment starts its own trajectory and windows at 0
+    np.testing.assert_array_equal(split.window_start[1, :3], [0, 3, 6])
+    np.testing.assert_array_equal(split.traj[1, :12], traj[0, 12:])
+    assert split.traj_mask[1].sum() == 12 and split.window_mask[1].sum() == 3
+    np.testing.assert_array_equal(split.H[1, :3], runs.H[0, 3:])
+    back = _merge_segments({"H": split.H}, pieces, 1, K)["H"]
+    np.testing.assert_array_equal(back, runs.H)
+    # one segment: unchanged
+    same, p1 = split_segments(runs, t[None] * 100.0)  # slow enough to be a real move
+    assert same is runs and len(p1) == 1

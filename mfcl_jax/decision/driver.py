@@ -17,12 +17,13 @@ import jax
 import numpy as np
 import pandas as pd
 
+from mfcl_jax import windows as W
 from mfcl_jax.decision import policies
 from mfcl_jax.decision.evaluate import batch_inputs, evaluate, policy_names, to_frame
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
 from mfcl_jax.decision.state import DecisionParams
 
-__all__ = ["building_maps", "chunks", "decide"]
+__all__ = ["building_maps", "chunks", "decide", "split_segments"]
 
 
 def building_maps(floorplans, used, min_iou: float | None = None) -> dict[int, DecisionMaps]:
@@ -110,7 +111,9 @@ def decide(
     stacked = DecisionParams.stack(params if isinstance(params, list) else [params])
     var = policies.variants(ours)
     runs, stacked, var, n_bad = batch_inputs(cands, batch, stacked, var)
-    rb = np.asarray(batch.run_building)
+    R0, K0 = np.asarray(runs.window_mask).shape
+    runs, pieces = split_segments(runs, np.asarray(batch.runs.traj_t))
+    rb = np.asarray(batch.run_building)[pieces[:, 0]]
     runs_per_call = max(1, min(runs_per_call, rb.shape[0]))
     maps = building_maps(floorplans, sorted(set(rb.tolist())), min_iou)
     any_map = next(iter(maps.values()))
@@ -142,9 +145,72 @@ def decide(
         parts.append((idx, dec))
         if progress is not None:
             progress(sum(len(i) for i, _ in parts))
-    dec = _scatter(parts, R)
+    dec = _merge_segments(_scatter(parts, R), pieces, R0, K0)
     frame = to_frame(dec, policy_names(ours), batch.runs.window_mask, n_bad)
     return frame, {"compile_s": tc, "run_s": tr}
+
+
+def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
+    """Every odometry segment (``windows.odometry_segments``) of every run as a run of its own.
+
+    Poses before and after an odometry jump (a restart) are in incommensurable frames, so the
+    layer starts over after one: the windows of a segment are decided from that segment's
+    windows and trajectory only, and the commit machine begins afresh.
+
+    Returns:
+        ``(runs, pieces)``: the split ``RunInputs`` and ``pieces (R', 3)`` = (source run,
+        first window, window count) per split run. Without a jump, ``runs`` unchanged.
+    """
+    wm, tm = np.asarray(runs.window_mask), np.asarray(runs.traj_mask)
+    ws, traj = np.asarray(runs.window_start), np.asarray(runs.traj)
+    R, K = wm.shape
+    T = tm.shape[1]
+    pieces, spans = [], []
+    for r in range(R):
+        nk, nt = int(wm[r].sum()), int(tm[r].sum())
+        seg = W.odometry_segments(traj[r, :nt], traj_t[r, :nt])
+        if nk == 0 or nt == 0 or seg[-1] == 0:
+            pieces.append((r, 0, nk))
+            spans.append((0, T))
+            continue
+        wseg = seg[ws[r, :nk]]
+        for sid in np.unique(wseg):
+            ks, ts = np.flatnonzero(wseg == sid), np.flatnonzero(seg == sid)
+            pieces.append((r, int(ks[0]), len(ks)))
+            spans.append((int(ts[0]), int(ts[-1]) + 1))
+    pieces = np.asarray(pieces, np.int64).reshape(-1, 3)
+    if len(pieces) == R:
+        return runs, pieces
+    out = {}
+    for name in type(runs).__dataclass_fields__:
+        a = np.asarray(getattr(runs, name))
+        b = np.zeros((len(pieces), *a.shape[1:]), a.dtype)
+        for i, ((r, w0, n), (t0, t1)) in enumerate(zip(pieces, spans, strict=True)):
+            if name in ("traj", "traj_mask"):
+                b[i, : t1 - t0] = a[r, t0:t1]
+                if name == "traj":
+                    b[i, t1 - t0 :] = a[r, t1 - 1]
+            else:
+                b[i, :n] = a[r, w0 : w0 + n]
+                if name in ("window_start", "window_end"):
+                    b[i, :n] -= t0
+        out[name] = b
+    return type(runs)(**out), pieces
+
+
+def _merge_segments(dec, pieces: np.ndarray, R: int, K: int):
+    """Decisions of split runs (``split_segments``) back into ``(R, K, ...)`` run order."""
+    if len(pieces) == R and np.all(pieces[:, 1] == 0):
+        return dec
+
+    def merge(a):
+        a = np.asarray(a)
+        out = np.zeros((R, K, *a.shape[2:]), a.dtype)
+        for i, (r, w0, n) in enumerate(pieces):
+            out[r, w0 : w0 + n] = a[i, :n]
+        return out
+
+    return jax.tree.map(merge, dec)
 
 
 def _trim(runs, kb: int, tb: int):

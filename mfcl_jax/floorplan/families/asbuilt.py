@@ -24,15 +24,14 @@ from shapely.geometry.polygon import orient
 from mfcl_jax.floorplan.families.clutter import WALK_KEEP_OUT
 from mfcl_jax.floorplan.families.walks import CLEAR, clearance
 from mfcl_jax.floorplan.model import Floorplan
+from mfcl_jax.sim.trajectory import sample_path
+
+__all__ = ["with_as_built", "AS_BUILT_KINDS", "NotApplicable", "seeded"]
 
 
 class NotApplicable(ValueError):
     """The building has nothing this deviation can change (no wall, door or room for it)."""
 
-
-from mfcl_jax.sim.trajectory import sample_path
-
-__all__ = ["with_as_built", "AS_BUILT_KINDS", "NotApplicable", "seeded"]
 
 AS_BUILT_KINDS = ("missing_wall", "extra_partition", "moved_door")
 

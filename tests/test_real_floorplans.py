@@ -42,6 +42,26 @@ def test_duplex_level1():
     assert 8 < x1 - x0 < 10 and 17 < y1 - y0 < 19
 
 
+def test_ifc_loads_are_identical_from_run_to_run():
+    """The geometry iterator's threads finish in any order; rooms, doors and walls must not
+    (random tours, room names and every benchmark number derived from them depend on it)."""
+    import subprocess
+    import sys
+
+    code = (
+        "from mfcl_jax.floorplan import load_ifc; import sys, hashlib; "
+        f"fp = load_ifc({str(DUPLEX)!r}, storey='Level 1'); "
+        "print([r.name for r in fp.rooms], [d.rooms for d in fp.doors], "
+        "hashlib.sha1(b''.join(p.wkb for p in fp.wall_polygons)).hexdigest())"
+    )
+    outs = {
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                       env={**__import__("os").environ, "PYTHONHASHSEED": str(h)}).stdout
+        for h in (1, 2, 3)
+    }  # fmt: skip
+    assert len(outs) == 1, outs
+
+
 def test_duplex_storeys_and_errors():
     assert len(load_ifc(DUPLEX, storey="Level 2").rooms) >= 10
     assert load_ifc(DUPLEX, storey=3.1).name.endswith("Level 2")

@@ -197,6 +197,14 @@ def batch_inputs(
     return runs, params, var, n_bad
 
 
+def _names(table: dict, codes) -> np.ndarray:
+    """``table[code]`` for every code (an object array; vectorised lookup)."""
+    lut = np.empty(max(table) + 1, object)
+    for k, v in table.items():
+        lut[k] = v
+    return lut[np.asarray(codes).ravel().astype(np.int64)]
+
+
 def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.DataFrame:
     """One row per run x window x threshold set x policy (host side, NumPy/pandas).
 
@@ -218,8 +226,8 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
             "k": ik + 1,
             "set": is_,
             "policy": np.asarray(names, object)[iv],
-            "state": [STATE_NAMES[int(x)] for x in d.state.ravel()],
-            "kind": [lattice.KIND_NAMES[int(x)] for x in d.kind.ravel()],
+            "state": _names(STATE_NAMES, d.state),
+            "kind": _names(lattice.KIND_NAMES, d.kind),
             "x": d.anchor[..., 0].ravel(),
             "y": d.anchor[..., 1].ravel(),
             "yaw_deg": np.rad2deg(d.anchor[..., 2].ravel()),
@@ -236,7 +244,7 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
             "winner_gate": d.winner_gate.ravel(),
             "probe_alias": d.probe_alias.ravel(),
             "probe_c": d.probe_c.ravel(),
-            "reason": [REASONS[int(x)] for x in d.reason.ravel()],
+            "reason": _names(REASONS, d.reason),
             "max_score": d.max_score.ravel(),
         }
     )

@@ -199,13 +199,18 @@ def _meshes(model, elements):
     )
     if not it.initialize():
         return
+    # The iterator's threads finish shapes in any order: sorted by entity id, the rooms, doors
+    # and walls (and the names and tours drawn from them) are the same in every run.
+    out = []
     while True:
         shape = it.get()
         verts = np.asarray(shape.geometry.verts, float).reshape(-1, 3)
         faces = np.asarray(shape.geometry.faces, np.int64).reshape(-1, 3)
-        yield model.by_id(shape.id), verts, faces
+        out.append((int(shape.id), verts, faces))
         if not it.next():
             break
+    for i, verts, faces in sorted(out, key=lambda x: x[0]):
+        yield model.by_id(i), verts, faces
 
 
 # ---------------------------------------------------------------------- the loader

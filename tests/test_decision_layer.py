@@ -338,3 +338,23 @@ def test_three_overlapping_windows_are_one_vote():
     one[0, [2, 3, 4]] = True
     assert int(disjoint_count(jnp.asarray(one), start, end)[0]) == 1
     assert int(disjoint_count(jnp.ones((1, 10), bool), start, end)[0]) == 3  # 0, 4, 8
+
+
+def test_a_path_that_leaves_the_map_is_never_committed():
+    """The front-end agrees on one anchor in every window, but under it the odometry walks
+    out of the building through its end wall: a typed DEFER with its reason, never a commit."""
+    from mfcl_jax.decision.state import REASONS
+
+    out_path = [[3, 2.5], [26, 2.5], [40, 2.5]]  # the row ends at x = 4 pitches
+    run = make_run(walk(out_path, step=40.0 / (T - 1)), A, K, probe_cands, J=J, fp=ROW_FP)
+    d = ours(evaluate_runs([run]))
+    names = ["DEFER", "AMBIGUOUS", "COMMIT"]
+    states = [names[s] for s in d.state]
+    assert "COMMIT" not in states[-3:], states  # once the path is outside, no commit stands
+    assert states[-1] == "DEFER"
+    why = REASONS[int(d.reason[-1])]
+    assert why in ("winner infeasible", "no feasible champion", "commit infeasible"), why
+    # the same candidates along a path that stays inside commit
+    inside = make_run(walk([[3, 2.5], [26, 2.5]], step=23.0 / (T - 1)), A, K, probe_cands, J=J,
+                      fp=ROW_FP)  # fmt: skip
+    assert names[int(ours(evaluate_runs([inside])).state[-1])] == "COMMIT"

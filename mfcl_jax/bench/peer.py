@@ -38,7 +38,7 @@ def make_mcl_runner(cfg, seed: int = 0):
         )
         # coarse buckets: every group of the benchmark shares a few compilations; the padded
         # runs (copies) are never read
-        tr = run_mcl(pad_batch(batch), params, seeds=(seed,))
+        tr = run_mcl(pad_batch(batch, grid=256), params, seeds=(seed,))
         rows = []
         for s, xy in enumerate(COMMIT_XY):
             ok = commits(tr, commit_xy=xy)[:, 0]  # (R, K)

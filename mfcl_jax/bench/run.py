@@ -65,6 +65,7 @@ class Collected:
     batches: list = field(default_factory=list)  # WindowBatch without points, per group
     candidates: list = field(default_factory=list)  # Candidates per group
     floorplans: list = field(default_factory=list)  # by building index
+    building_of: dict = field(default_factory=dict)  # id(floorplan) -> building index
     labels: list = field(default_factory=list)  # RunLabel per run
     mcl: list = field(default_factory=list)  # per-group MCL decision frames
     nominal_labels: dict = field(default_factory=dict)  # (family, seed, walk) -> RunLabel
@@ -150,10 +151,10 @@ def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
     t0 = time.perf_counter()
     wins = [W.cut(r.seq, wp) for r in recs]
     col.tick("windows", time.perf_counter() - t0)
-    bidx = {}
+    bidx = col.building_of  # across groups: a plan shared by many runs is one building
     items = []
     for r, w in zip(recs, wins, strict=True):
-        if id(r.floorplan) not in bidx:
+        if id(r.floorplan) not in bidx:  # col.floorplans keeps it alive: ids stay unique
             bidx[id(r.floorplan)] = fe.add(r.floorplan)
             col.floorplans.append(r.floorplan)
         items.append((r.seq, w, bidx[id(r.floorplan)]))

@@ -8,6 +8,7 @@ as GeoJSON under the cache folder, so a re-run does not re-cut the IFC files.
 
 from __future__ import annotations
 
+import functools
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -33,11 +34,20 @@ def _tag(recs, **meta):
     return [Recording(r.name, r.floorplan, r.seq, r.truth, {**r.meta, **meta}) for r in recs]
 
 
-def _procedural(family: str, seed: int, walks: int, params: SimParams, scene=None, **meta):
+@functools.lru_cache(maxsize=256)
+def _scene(family: str, seed: int):
+    """One ``Scene`` object per (family, seed): its nominal runs and every fault run that
+    keeps the plan share one ``Floorplan``, so features, rasters and gate maps are built once
+    (the fault constructors return new scenes, never change this one)."""
     from mfcl_jax.floorplan import families
+
+    return families.make_scene(family, seed)
+
+
+def _procedural(family: str, seed: int, walks: int, params: SimParams, scene=None, **meta):
     from mfcl_jax.sources.simulated import simulate
 
-    scene = scene or families.make_scene(family, seed)
+    scene = scene or _scene(family, seed)
     names = list(scene.trajectories)[:walks]
     recs = simulate(scene, names, [seed], params)
     meta = {"fault": "", "level": "", **meta}
@@ -143,7 +153,7 @@ def _faulted(axis: str, level, fam: str, seed: int):
     """(scene or None, SimParams) of one fault level for one base building."""
     from mfcl_jax.floorplan import families
 
-    scene = families.make_scene(fam, seed)
+    scene = _scene(fam, seed)
     lidar, traj = LidarParams(), TrajectoryParams()
     sim = SimParams()
     if axis == "drift":

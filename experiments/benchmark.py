@@ -25,13 +25,18 @@ ConfigStore.instance().store(name="benchmark_schema", node=BenchmarkConfig)
 
 
 def batch_comma_lists(argv: list[str]) -> list[str]:
-    """Rewrites ``key=a,b`` to ``key=[a,b]`` for list keys unless Hydra runs a multirun."""
-    if any(a in ("-m", "--multirun") for a in argv):
-        return argv
+    """Rewrites ``key=a,b`` for list keys: to ``key=[a,b]`` (one batched process), or under a
+    multirun to ``key=[a],[b]`` (one job per value; the schema takes lists only)."""
+    multi = any(a in ("-m", "--multirun") for a in argv)
     out = []
     for a in argv:
         m = re.fullmatch(r"({})=([^\[\]]*)".format("|".join(LIST_KEYS)), a)
-        out.append(f"{m.group(1)}=[{m.group(2)}]" if m else a)
+        if not m:
+            out.append(a)
+        elif multi:
+            out.append(f"{m.group(1)}=" + ",".join(f"[{v}]" for v in m.group(2).split(",")))
+        else:
+            out.append(f"{m.group(1)}=[{m.group(2)}]")
     return out
 
 

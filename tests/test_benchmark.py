@@ -123,3 +123,14 @@ def test_nominal_fault_levels_reuse_the_first_walk_of_the_base_set():
     got = set(zip(out["family"], out["walk"], out["run"], strict=True))
     assert sorted(got) == [("bays", "A", 0), ("hall", "A", 3)]
     assert len(out) == 4  # two runs x two policies
+
+
+def test_comma_lists_batch_in_one_run_and_split_per_job_in_a_multirun():
+    from experiments.benchmark import batch_comma_lists
+
+    assert batch_comma_lists(["x", "families=plain,bays"]) == ["x", "families=[plain,bays]"]
+    # the schema takes lists only: one list per multirun job
+    assert batch_comma_lists(["-m", "families=plain,bays", "seeds=2"]) == [
+        "-m", "families=[plain],[bays]", "seeds=2"
+    ]  # fmt: skip
+    assert batch_comma_lists(["-m", "faults=[]"]) == ["-m", "faults=[]"]

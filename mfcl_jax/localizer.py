@@ -19,6 +19,7 @@ from mfcl_jax import status
 from mfcl_jax import windows as W
 from mfcl_jax.batch import bucket
 from mfcl_jax.decision import DecisionParams, SelectiveInitializer, decision_maps
+from mfcl_jax.decision.rivals import rival_fields
 from mfcl_jax.decision.stream import Decision
 from mfcl_jax.frontend import FrontendParams
 from mfcl_jax.frontend.driver import FrontEnd
@@ -102,6 +103,7 @@ class Localizer:
         self.params = params or LocalizeParams()
         self._fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
         self._maps = decision_maps(floorplan)
+        self._search = rival_fields(floorplan)  # the rival search's view of the plan
 
     def windows(self, seq) -> W.Windows:
         """The windows of ``seq`` (as the batch path cuts them)."""
@@ -148,6 +150,7 @@ class Localizer:
                     k_cap=bucket(len(w), 8),
                     j_cap=self.params.frontend.J,
                     t_cap=bucket(len(kf), 256),
+                    plan=self._search,
                 )
             one = W.window(w, k)
             wb = W.pack([(seq, one, 0)], capacity=bucket(cap, 256))

@@ -57,7 +57,7 @@ def pad_run(run):
 
 def evaluate_runs(runs, maps=ROW, params=P1):
     runs = [pad_run(r) for r in runs]
-    fields = [f for f in RunInputs.__dataclass_fields__]
+    fields = [f for f in RunInputs.__dataclass_fields__ if f in runs[0]]
     b = RunInputs(**{f: jnp.asarray(np.stack([r[f] for r in runs])) for f in fields})
     out = evaluate(b, maps, None, params, variants())
     return jax.tree.map(np.asarray, out)
@@ -274,7 +274,7 @@ def test_stream_equals_batch():
     run = run_of(lattice_cands)
     out = ours(evaluate_runs([run]))
     maps = pad_maps(decision_maps(row_of_rooms()), GRID, 4)  # the batch path's padded maps
-    init = SelectiveInitializer(maps, DecisionParams(), k_cap=4, j_cap=J, t_cap=T)
+    init = SelectiveInitializer(maps, DecisionParams(), k_cap=4, j_cap=J, t_cap=T, rivals=None)
     traj, prev = run["traj"], 0
     X = run["X"]
     for k in range(K):

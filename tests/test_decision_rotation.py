@@ -204,7 +204,7 @@ def test_c2_immunity_of_the_rotation_verdict():
 def test_stream_equals_batch_with_rotation(path):
     r = run(path)
     out = ours(evaluate(r))
-    init = SelectiveInitializer(MAPS, DecisionParams(), k_cap=4, j_cap=J, t_cap=T)
+    init = SelectiveInitializer(MAPS, DecisionParams(), k_cap=4, j_cap=J, t_cap=T, rivals=None)
     traj, prev, X = r["traj"], 0, r["X"]
     kinds = []
     for k in range(K):

@@ -211,9 +211,11 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     )
     params = [DecisionParams().replace(**k) for k in KNOB_SETS]
     t0 = time.perf_counter()
-    frame, tm = decide(batch, cands, col.floorplans, params, ours=tuple(ours))
+    frame, tm = decide(batch, cands, col.floorplans, params, ours=tuple(ours),
+                       primary_set=DEFAULT_SET)  # fmt: skip
     col.tick("decision compile", tm["compile_s"])
     col.tick("decision run", tm["run_s"])
+    col.tick("rival search", tm.get("search_s", 0.0))
     parts = [frame, *col.mcl]
     frame = pd.concat(parts, ignore_index=True) if col.mcl else frame
     # Fault runs enter only the fault tables, which read the default thresholds: the other
@@ -221,6 +223,7 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     fault = np.asarray([bool(r.meta.get("fault", "")) for r in col.recordings])
     frame = frame[~fault[frame["run"].to_numpy()] | (frame["set"].to_numpy() == DEFAULT_SET)]
     scored = score_batch(frame, batch, col.recordings, rooms=False)
-    col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"])
+    col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"]
+             - tm.get("search_s", 0.0))  # fmt: skip
     meta = pd.DataFrame([dict(run=i, name=r.name, **r.meta) for i, r in enumerate(col.recordings)])
     return scored.merge(meta, on="run", how="left")

@@ -9,9 +9,10 @@ a scan-disjoint chain ending at the prefix are used (each scan counted once, as 
 consensus), compacted into ``n_windows`` slots.
 
 Competitors: the probe's aliases of ``T*`` (period-shifted copies and rotated images by the
-building's self-motions), every other consensus group's anchor, and each window's best
+building's self-motions), every other consensus group's anchor, each window's best
 candidate outside the winner's neighbourhood (the runner-up explanation of that window, which
-the top-1 consensus never sees). A competitor that places the robot within ``CORRECT`` of
+the top-1 consensus never sees), and the rivals of the whole path found by the global search
+where a commit was about to happen (``rivals``). A competitor that places the robot within ``CORRECT`` of
 where ``T*`` does is the same answer and is not a competitor.
 
 Per competitor the advantage ``adv_w = s_w(T*) - s_w(C)`` gives two numbers, the largest and
@@ -82,16 +83,19 @@ def chain(k, start, end, valid, n_slots: int):
     return order.astype(jnp.int32), take[order]
 
 
-def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visible, x_now):
+def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visible, x_now,
+                rivals=None, rivals_ok=None):  # fmt: skip
     """The competitor anchors at one prefix.
 
     Args:
         t_star: ``(3,)``; aliases: ``(A, 3)`` with ``aliases_ok``; groups: ``(G, 3)`` other
             groups' anchors with ``groups_ok``; H, score, visible: ``(K, J, ...)`` candidates of
-            the prefix; x_now: ``(3,)`` the odometry pose at the prefix.
+            the prefix; x_now: ``(3,)`` the odometry pose at the prefix; rivals: ``(E, 3)``
+            placements of the whole path found by the global search (``rivals``) with
+            ``rivals_ok`` (those found at or before this prefix), or None.
 
     Returns:
-        ``(anchors (A + G + K, 3), ok (A + G + K,))``: each window's runner-up is its best
+        ``(anchors (A + G + K [+ E], 3), ok)``: each window's runner-up is its best
         visible candidate that places the robot (now) farther than ``CORRECT`` from where
         ``T*`` does: a candidate 1-1.5 m off shares the winner's consensus group, yet it is a
         different answer, so it must be ruled out like any other.
@@ -105,6 +109,9 @@ def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visibl
     runner_ok = jnp.any(outside, axis=1)
     anchors = jnp.concatenate([aliases, groups, runner], axis=0)
     ok = jnp.concatenate([aliases_ok, groups_ok, runner_ok])
+    if rivals is not None:
+        anchors = jnp.concatenate([anchors, rivals.astype(anchors.dtype)], axis=0)
+        ok = jnp.concatenate([ok, rivals_ok])
     return anchors, ok
 
 

@@ -12,6 +12,7 @@ into a table; the streaming mode for a robot is ``decision.stream``.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import jax
 import numpy as np
@@ -19,9 +20,17 @@ import pandas as pd
 
 from mfcl_jax import windows as W
 from mfcl_jax.decision import policies
-from mfcl_jax.decision.evaluate import batch_inputs, evaluate, policy_names, to_frame
+from mfcl_jax.decision.evaluate import NO_RIVAL, batch_inputs, evaluate, policy_names, to_frame
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
-from mfcl_jax.decision.state import DecisionParams
+from mfcl_jax.decision.policies import OURS_VARIANTS
+from mfcl_jax.decision.rivals import (
+    RIVAL_SLOTS,
+    RivalParams,
+    path_cloud,
+    rival_fields,
+    search_rivals,
+)
+from mfcl_jax.decision.state import COMMIT, DecisionParams
 
 __all__ = ["building_maps", "chunks", "decide", "split_segments"]
 
@@ -87,6 +96,9 @@ def decide(
     buildings_per_call: int = 8,
     run_chunk: int = 8,
     progress=None,
+    rival_params: RivalParams | None = RivalParams(),
+    primary: str = "ours",
+    primary_set: int = 0,
 ) -> tuple[pd.DataFrame, dict]:
     """Every policy's decision at every window of every run of a ``WindowBatch``.
 
@@ -101,11 +113,15 @@ def decide(
         runs_per_call, buildings_per_call: chunk sizes (static: one compilation).
         run_chunk: runs per step of the sequential map inside a call.
         progress: optional callable ``progress(runs_done)``.
+        rival_params: settings of the global search for rivals where ``primary`` (at threshold
+            set ``primary_set``) is about to commit (``rivals``; None: no search). Every
+            certifying policy then weighs the rivals found; the search prefixes are the
+            primary's, which is what a robot running the primary would search.
 
     Returns:
         ``(frame, timing)``: one row per run x window x threshold set x policy (columns of
         ``evaluate.to_frame``, ``run`` indexing the batch's runs) and
-        ``{"compile_s", "run_s"}``.
+        ``{"compile_s", "run_s", "search_s", "searches"}``.
     """
     params = params or DecisionParams()
     stacked = DecisionParams.stack(params if isinstance(params, list) else [params])
@@ -121,33 +137,95 @@ def decide(
     # keyframes (powers of two), not to the longest run of the batch.
     k_b = np.asarray([_bucket(n, 16, 16) for n in np.asarray(runs.window_mask).sum(1)])
     t_b = np.asarray([_bucket(n, 128) for n in np.asarray(runs.traj_mask).sum(1)])
-    parts, tc, tr, compiled = [], 0.0, 0.0, {}
+    compiled, tm = {}, {"compile_s": 0.0, "run_s": 0.0, "search_s": 0.0, "searches": 0}
     R, K = rb.shape[0], int(np.asarray(runs.window_mask).shape[1])
-    for idx in chunks(rb, runs_per_call, buildings_per_call, keys=k_b * 65536 + t_b):
-        kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
-        sub = jax.tree.map(lambda a, i=idx: _pad_rows(np.asarray(a)[i], runs_per_call), runs)
-        sub = _trim(sub, kb, tb)
-        used = list(dict.fromkeys(rb[idx].tolist()))
-        stack = [maps[b] for b in used] + [any_map] * (buildings_per_call - len(used))
-        mp = jax.tree.map(lambda *xs: np.stack(xs), *stack)
-        local = np.asarray([used.index(b) for b in rb[idx]], np.int32)
-        local = _pad_rows(local, runs_per_call)
-        if (kb, tb) not in compiled:
+
+    def run_chunks(runs, todo):
+        parts = []
+        for idx in chunks(rb[todo], runs_per_call, buildings_per_call, keys=k_b[todo] * 65536 + t_b[todo]):
+            idx = todo[idx]
+            kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
+            sub = jax.tree.map(lambda a, i=idx: _pad_rows(np.asarray(a)[i], runs_per_call), runs)
+            sub = _trim(sub, kb, tb)
+            used = list(dict.fromkeys(rb[idx].tolist()))
+            stack = [maps[b] for b in used] + [any_map] * (buildings_per_call - len(used))
+            mp = jax.tree.map(lambda *xs: np.stack(xs), *stack)
+            local = np.asarray([used.index(b) for b in rb[idx]], np.int32)
+            local = _pad_rows(local, runs_per_call)
+            if (kb, tb) not in compiled:
+                t0 = time.perf_counter()
+                lowered = evaluate.lower(sub, mp, local, stacked, var, run_chunk=run_chunk)
+                compiled[kb, tb] = lowered.compile()
+                tm["compile_s"] += time.perf_counter() - t0
             t0 = time.perf_counter()
-            lowered = evaluate.lower(sub, mp, local, stacked, var, run_chunk=run_chunk)
-            compiled[kb, tb] = lowered.compile()
-            tc += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        dec = jax.block_until_ready(compiled[kb, tb](sub, mp, local, stacked, var))
-        tr += time.perf_counter() - t0
-        n = len(idx)
-        dec = jax.tree.map(lambda a: _pad_axis1(np.asarray(a)[:n], K), dec)  # noqa: B023
-        parts.append((idx, dec))
-        if progress is not None:
-            progress(sum(len(i) for i, _ in parts))
-    dec = _merge_segments(_scatter(parts, R), pieces, R0, K0)
+            dec = jax.block_until_ready(compiled[kb, tb](sub, mp, local, stacked, var))
+            tm["run_s"] += time.perf_counter() - t0
+            n = len(idx)
+            dec = jax.tree.map(lambda a: _pad_axis1(np.asarray(a)[:n], K), dec)  # noqa: B023
+            parts.append((idx, dec))
+            if progress is not None:
+                progress(sum(len(i) for i, _ in parts))
+        return parts
+
+    dec = _scatter(run_chunks(runs, np.arange(R)), R)
+    if rival_params is not None and primary in ours and OURS_VARIANTS[primary][2]:
+        v0 = list(ours).index(primary)
+        dec, runs = _with_rivals(dec, runs, rb, floorplans, run_chunks, primary_set, v0,
+                                 rival_params, tm)  # fmt: skip
+    dec = _merge_segments(dec, pieces, R0, K0)
     frame = to_frame(dec, policy_names(ours), batch.runs.window_mask, n_bad)
-    return frame, {"compile_s": tc, "run_s": tr}
+    return frame, tm
+
+
+def _with_rivals(dec, runs, rb, floorplans, run_chunks, s0, v0, rp: RivalParams, tm):
+    """The global search where the primary policy is about to commit, then the runs again.
+
+    Where the commit machine of policy ``v0`` at threshold set ``s0`` enters COMMIT at a prefix
+    not searched yet (and the run has searches left), the path up to that prefix is searched
+    (``rivals``); the placements found are the run's rivals from that prefix on, and the run
+    is decided again (every policy and set: they all certify against the same rivals). This
+    repeats until no run enters COMMIT at an unsearched prefix, as ``stream`` does online.
+    """
+    R = rb.shape[0]
+    riv = np.zeros((R, RIVAL_SLOTS, 3), np.float32)
+    riv_k = np.full((R, RIVAL_SLOTS), NO_RIVAL, np.int32)
+    last = np.full(R, -1)
+    n_done = np.zeros(R, np.int64)
+    fields: dict = {}
+    ts, n_search = 0.0, 0
+    wm = np.asarray(runs.window_mask)
+    for _ in range(rp.max_searches):
+        st = np.asarray(dec.state)[:, :, s0, v0] == COMMIT  # (R, K)
+        entry = st & ~np.pad(st, ((0, 0), (1, 0)))[:, :-1] & wm
+        todo = []
+        for r in np.flatnonzero(n_done < rp.max_searches):
+            ks = np.flatnonzero(entry[r] & (np.arange(st.shape[1]) > last[r]))
+            if len(ks) == 0:
+                continue
+            k = int(ks[0])
+            b = int(rb[r])
+            if b not in fields:
+                fields[b] = rival_fields(floorplans[b], rp)
+            t0 = time.perf_counter()
+            pts, free = path_cloud(runs.ev_points[r], runs.ev_origins[r], runs.ev_mask[r],
+                                   np.asarray(runs.X[r], np.float64), k, rp)  # fmt: skip
+            A, _ = search_rivals(pts, free, fields[b], rp)
+            ts += time.perf_counter() - t0
+            n_search += 1
+            slot = int(n_done[r]) * rp.n_rivals
+            riv[r, slot : slot + len(A)] = A
+            riv_k[r, slot : slot + len(A)] = k
+            last[r], n_done[r] = k, n_done[r] + 1
+            todo.append(r)
+        if not todo:
+            break
+        runs = replace(runs, rivals=riv, rivals_k=riv_k)
+        todo = np.asarray(todo)
+        for idx, d in run_chunks(runs, todo):
+            for full, part in zip(jax.tree.leaves(dec), jax.tree.leaves(d), strict=True):
+                full[idx] = part
+    tm["search_s"], tm["searches"] = ts, n_search
+    return dec, runs
 
 
 def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
@@ -183,6 +261,9 @@ def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
         return runs, pieces
     out = {}
     for name in type(runs).__dataclass_fields__:
+        if getattr(runs, name) is None:
+            out[name] = None
+            continue
         a = np.asarray(getattr(runs, name))
         b = np.zeros((len(pieces), *a.shape[1:]), a.dtype)
         for i, ((r, w0, n), (t0, t1)) in enumerate(zip(pieces, spans, strict=True)):
@@ -190,6 +271,10 @@ def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
                 b[i, : t1 - t0] = a[r, t0:t1]
                 if name == "traj":
                     b[i, t1 - t0 :] = a[r, t1 - 1]
+            elif name in ("rivals", "rivals_k"):  # per run, not per window
+                b[i] = a[r]
+                if name == "rivals_k":
+                    b[i] = np.where(a[r] == NO_RIVAL, NO_RIVAL, np.maximum(a[r] - w0, 0))
             else:
                 b[i, :n] = a[r, w0 : w0 + n]
                 if name in ("window_start", "window_end"):
@@ -228,6 +313,7 @@ def _trim(runs, kb: int, tb: int):
                   "ev_points", "ev_origins", "ev_mask")  # fmt: skip
     kw = {f: fit(getattr(runs, f), 1, kb) for f in per_window}
     kw.update(traj=fit(runs.traj, 1, tb), traj_mask=fit(runs.traj_mask, 1, tb))
+    kw.update(rivals=runs.rivals, rivals_k=runs.rivals_k)
     return type(runs)(**kw)
 
 

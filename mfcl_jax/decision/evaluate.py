@@ -26,6 +26,7 @@ import pandas as pd
 from mfcl_jax.decision import gate as gate_mod
 from mfcl_jax.decision import lattice, machine, policies
 from mfcl_jax.decision.anchors import candidate_anchors, per_run
+from mfcl_jax.decision.rivals import RIVAL_SLOTS
 from mfcl_jax.decision.state import (
     REASONS,
     STATE_NAMES,
@@ -38,6 +39,7 @@ from mfcl_jax.decision.state import (
 
 __all__ = [
     "RunInputs",
+    "NO_RIVAL",
     "evaluate_run",
     "evaluate",
     "batch_inputs",
@@ -65,6 +67,9 @@ class RunInputs:
         X: ``(K, 3)`` odometry pose of each window's last scan.
         ev_points, ev_origins: ``(K, P, 2)`` evidence sample of each window (its frame);
         ev_mask: ``(K, P)``.
+        rivals: ``(E, 3)`` placements of the whole path found by the global search
+            (``rivals``); rivals_k: ``(E,)`` int32 0-based prefix each was found at (a
+            competitor of the certification from there on; ``NO_RIVAL`` for an empty slot).
     """
 
     H: jax.Array
@@ -79,7 +84,11 @@ class RunInputs:
     ev_points: jax.Array
     ev_origins: jax.Array
     ev_mask: jax.Array
+    rivals: jax.Array | None = None
+    rivals_k: jax.Array | None = None
 
+
+NO_RIVAL = np.iinfo(np.int32).max
 
 jax.tree_util.register_dataclass(
     RunInputs, data_fields=list(RunInputs.__dataclass_fields__), meta_fields=[]
@@ -104,6 +113,7 @@ def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int 
     bounds = (r.window_start, r.window_end)
     evidence = (r.ev_points, r.ev_origins, r.ev_mask & r.window_mask[:, None])
     p0 = jax.tree.map(lambda x: x[0], params)  # the core reads no knob (see KNOBS)
+    rivals = None if r.rivals is None else (r.rivals, r.rivals_k)
 
     def cores_at(k):
         def core(ug):
@@ -116,7 +126,9 @@ def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int 
     cores = jax.vmap(cores_at)(jnp.arange(kk))  # (K, 2 modes, ...)
     on = jax.tree.map(lambda x: x[:, 0], cores)
     certs = jax.vmap(
-        lambda k, c: certify_core(k, c, r.H, r.score, r.X, evidence, bounds, maps, p0)
+        lambda k, c: certify_core(
+            k, c, r.H, r.score, r.X, evidence, bounds, maps, p0, rivals
+        )
     )(jnp.arange(kk), on)  # (K, ...): only the gated variants certify
 
     def ours_prefix(p, c2, cert):
@@ -185,11 +197,13 @@ def batch_inputs(
     H = candidate_anchors(cands.pose, sub.X)
     H, s, m, n_bad = per_run(H, cands.score, cands.mask, rb.submap, rb.window_mask)
     idx = np.clip(np.asarray(rb.submap), 0, max(sub.n - 1, 0))
+    R = idx.shape[0]
     ev = batch.evidence
     runs = RunInputs(
         H, s, m, rb.traj, rb.traj_mask, rb.window_start, rb.window_end, rb.window_mask,
         np.asarray(sub.X)[idx], np.asarray(ev.points)[idx], np.asarray(ev.origins)[idx],
         np.asarray(ev.mask)[idx] & (np.asarray(rb.submap) >= 0)[..., None],
+        np.zeros((R, RIVAL_SLOTS, 3), np.float32), np.full((R, RIVAL_SLOTS), NO_RIVAL, np.int32),
     )  # fmt: skip
     if np.ndim(params.tau_c) == 0:
         params = DecisionParams.stack([params])

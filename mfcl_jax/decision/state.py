@@ -244,16 +244,20 @@ def prefix_core(
     return PrefixCore(any_anchor, max_score, n_ch, g, fit, all_ok, all_tau, pr, admitted)
 
 
-def certify_core(k, core: PrefixCore, H, score, X, evidence, bounds, maps, p, n_slots=12):
+def certify_core(k, core: PrefixCore, H, score, X, evidence, bounds, maps, p, rivals=None,
+                 n_slots=12):  # fmt: skip
     """``certify.CertStats`` of the competitors of the core's ``T*`` at prefix ``k``: the
-    probe's gate-admissible aliases, the other groups, each window's runner-up."""
+    probe's gate-admissible aliases, the other groups, each window's runner-up and the
+    global search's rivals ``(anchors (E, 3), found_at (E,))`` found at or before ``k``."""
     g = core.groups
     kk = g.size.shape[0]
     others = (jnp.arange(kk) < g.n_groups) & (jnp.arange(kk) != g.winner)
     pr = core.probe_result
+    r_anchor, r_ok = (None, None) if rivals is None else (rivals[0], rivals[1] <= k)
     comp, ok = certify.competitors(
-        g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, core.admitted, X[k]
-    )
+        g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, core.admitted, X[k],
+        r_anchor, r_ok,
+    )  # fmt: skip
     return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots)
 
 
@@ -367,7 +371,7 @@ def finish(
 
 def decide_prefix(
     k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p: DecisionParams,
-    flags, n_cap: int = 3,
+    flags, n_cap: int = 3, rivals=None,
 ) -> Decisions:  # fmt: skip
     """Our decision at prefix ``k`` (0-based window index), before the commit machine.
 
@@ -384,8 +388,10 @@ def decide_prefix(
         flags: ``(use_gate, use_probe, use_cert, b_min, delta_min)`` of the variant (traced;
             floors already resolved against ``p``).
         n_cap: static probe shift capacity.
+        rivals: ``(anchors (E, 3), found_at (E,))`` the global search's rivals (``rivals``),
+            each a competitor from the prefix it was found at; None for none.
     """
     use_gate, use_probe, use_cert, b_min, delta_min = flags
     core = prefix_core(k, H, score, mask, cons, traj, traj_mask, bounds, maps, p, use_gate, n_cap)
-    cert = certify_core(k, core, H, score, X, evidence, bounds, maps, p)
+    cert = certify_core(k, core, H, score, X, evidence, bounds, maps, p, rivals)
     return finish(core, cert, maps, p, use_gate, use_probe, use_cert, b_min, delta_min)

@@ -26,7 +26,10 @@ from mfcl_jax.decision import lattice, machine
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps
 from mfcl_jax.decision.policies import OURS_VARIANTS
-from mfcl_jax.decision.state import REASONS, STATE_NAMES, DecisionParams, decide_prefix
+from mfcl_jax.decision.evaluate import NO_RIVAL
+from mfcl_jax.frontend.path_search import PlanFields
+from mfcl_jax.decision.rivals import RIVAL_SLOTS, RivalParams, path_cloud, rival_fields, search_rivals
+from mfcl_jax.decision.state import COMMIT, REASONS, STATE_NAMES, DecisionParams, decide_prefix
 
 __all__ = ["Decision", "SelectiveInitializer"]
 
@@ -79,15 +82,16 @@ class Decision:
 
 @partial(jax.jit, static_argnames=("n_cap",))
 def _decide_latest(
-    H, score, mask, traj, traj_mask, bounds, X, evidence, k, maps, p, flags, held, n_cap=3
-):
+    H, score, mask, traj, traj_mask, bounds, X, evidence, k, maps, p, flags, held, rivals,
+    n_cap=3,
+):  # fmt: skip
     cons = gate_mod.consistency_at(maps, H, traj, traj_mask, bounds[1][k])
     ug, up, uc, bm, dm = flags
     bm = jnp.where(bm < 0, p.b_min, bm)
     dm = jnp.where(dm < 0, p.delta_min, dm)
     raw = decide_prefix(
         k, H, score, mask, cons, traj, traj_mask, bounds, X, evidence, maps, p,
-        (ug, up, uc, bm, dm), n_cap,
+        (ug, up, uc, bm, dm), n_cap, rivals,
     )  # fmt: skip
     newest = (H[k], score[k], mask[k], X[k])
     return machine.step(held, raw, newest, p, ug)
@@ -112,6 +116,10 @@ class SelectiveInitializer:
         params: scalar ``DecisionParams``.
         variant: a key of ``OURS_VARIANTS``.
         k_cap, j_cap, t_cap: initial buffer capacities (they double when exceeded).
+        rivals: settings of the global search for rivals of a commit (``rivals``), run where
+            the layer is about to commit, as the batch driver does; None: no search.
+        plan: what the search reads when ``source`` is ready ``DecisionMaps``: the
+            ``Floorplan``, its ``Rasters`` or ready ``path_search.PlanFields``.
     """
 
     def __init__(
@@ -123,15 +131,32 @@ class SelectiveInitializer:
         j_cap: int = 16,
         t_cap: int = 256,
         n_cap: int = 3,
+        rivals: RivalParams | None = RivalParams(),
+        plan=None,
     ):
         if variant not in OURS_VARIANTS:
             raise ValueError(
                 f"SelectiveInitializer: unknown {variant=}; known {list(OURS_VARIANTS)}"
             )
+        ug, up, uc, bm, dm = OURS_VARIANTS[variant]
+        self._rival_params = rivals if uc else None
+        plan = source if plan is None else plan
+        if self._rival_params is not None and isinstance(plan, DecisionMaps):
+            raise ValueError(
+                "SelectiveInitializer: the rival search reads the floor plan; with ready "
+                "DecisionMaps pass plan= (a Floorplan, Rasters or PlanFields), or rivals=None"
+            )
+        self._fields = None
+        if self._rival_params is not None:
+            self._fields = plan if isinstance(plan, PlanFields) else rival_fields(plan, rivals)
+            self._fields = jax.tree.map(jnp.asarray, self._fields)
+        self._rivals = np.zeros((RIVAL_SLOTS, 3), np.float32)
+        self._rivals_k = np.full(RIVAL_SLOTS, NO_RIVAL, np.int32)
+        self._searches = 0
+        self._was_committed = False
         maps = source if isinstance(source, DecisionMaps) else decision_maps(source)
         self._maps = jax.tree.map(jnp.asarray, maps)
         self._params = (params or DecisionParams()).as_arrays()
-        ug, up, uc, bm, dm = OURS_VARIANTS[variant]
         self._flags = (
             jnp.bool_(ug), jnp.bool_(up), jnp.bool_(uc), jnp.float32(bm), jnp.float32(dm)
         )  # fmt: skip
@@ -220,6 +245,25 @@ class SelectiveInitializer:
             sample = evidence_sample(pts, org)
             self.ev_points[self.k], self.ev_origins[self.k], self.ev_mask[self.k] = sample
         self.k += 1
+        held, d = self._decide()
+        entering = int(d.state) == COMMIT and not self._was_committed
+        rp = self._rival_params
+        if entering and rp is not None and self._searches < rp.max_searches:
+            # about to commit: search the whole path for rivals, then decide this prefix again
+            k = self.k - 1
+            pts, free = path_cloud(self.ev_points, self.ev_origins, self.ev_mask,
+                                   self.X.astype(np.float64), k, rp)  # fmt: skip
+            A, _ = search_rivals(pts, free, self._fields, rp)
+            slot = self._searches * rp.n_rivals
+            self._rivals[slot : slot + len(A)] = A
+            self._rivals_k[slot : slot + len(A)] = k
+            self._searches += 1
+            held, d = self._decide()
+        self._held = held
+        self._was_committed = int(d.state) == COMMIT
+        return self._report(d, t)
+
+    def _decide(self):
         held, d = _decide_latest(
             self.H,
             self.score,
@@ -234,9 +278,12 @@ class SelectiveInitializer:
             self._params,
             self._flags,
             self._held,
+            (self._rivals, self._rivals_k),
             n_cap=self._n_cap,
         )
-        self._held, d = held, jax.tree.map(np.asarray, d)
+        return held, jax.tree.map(np.asarray, d)
+
+    def _report(self, d, t) -> Decision:
         kind = lattice.KIND_NAMES[int(d.kind)]
         return Decision(
             k=self.k,

@@ -1,0 +1,130 @@
+"""Rivals of a commit: the global search of the whole path, and what the certification does
+with what it finds (decision.rivals, certify, driver, stream)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.decision import REASONS, DecisionParams, RunInputs, evaluate, pad_maps, variants
+from mfcl_jax.decision import decision_maps, policy_names
+from mfcl_jax.decision.evaluate import NO_RIVAL
+from mfcl_jax.decision.rivals import RIVAL_SLOTS, path_cloud, rival_fields, search_rivals
+from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
+
+A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
+K, J, T = 8, 4, 192
+OURS = policy_names().index("ours")
+
+
+def truth_only(k, y):
+    return [(y, 1.0)]
+
+
+def test_path_cloud_places_each_window_by_its_odometry_pose():
+    P = 4
+    ev_p = np.zeros((2, P, 2))
+    ev_p[:, 0] = [1.0, 0.0]
+    ev_o = np.zeros((2, P, 2))
+    ev_m = np.zeros((2, P), bool)
+    ev_m[:, 0] = True
+    X = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, np.pi / 2]])
+    pts, free = path_cloud(ev_p, ev_o, ev_m, X, 1)
+    np.testing.assert_allclose(pts, [[1.0, 0.0], [2.0, 1.0]], atol=1e-12)
+    # free samples along each ray (0.3, 0.6, 0.85 of the way) and the sensor positions
+    assert len(free) == 2 * 3 + 2
+    np.testing.assert_allclose(free[-1], [2.0, 0.0])
+    only_first, _ = path_cloud(ev_p, ev_o, ev_m, X, 0)
+    assert len(only_first) == 1
+
+
+def test_search_places_an_asymmetric_path_where_it_was_walked():
+    fp = three_rooms()
+    run = make_run(walk([[3, 3], [10, 3], [17, 3], [10, 3]]), A, K, truth_only, J=J, fp=fp)
+    pts, free = path_cloud(run["ev_points"], run["ev_origins"], run["ev_mask"], run["X"], K - 1)
+    anchors, scores = search_rivals(pts, free, rival_fields(fp))
+    assert len(anchors) >= 1 and np.all(np.diff(scores) <= 0)  # best first
+    dxy, dth = se2.distance_pair(jnp.asarray(anchors[0]), jnp.asarray(A))
+    assert float(dxy) < 0.15 and np.rad2deg(float(dth)) < 1.0
+    # an empty path has no rivals (and no error)
+    none, _ = search_rivals(np.zeros((0, 2)), np.zeros((0, 2)), rival_fields(fp))
+    assert none.shape == (0, 3)
+
+
+def _decide(run, maps, rivals=None, found_at=NO_RIVAL):
+    r = dict(run)
+    r.pop("Y_true")
+    t = r["traj"].shape[0]
+    r["traj"] = np.pad(r["traj"], ((0, T - t), (0, 0)))
+    r["traj_mask"] = np.pad(r["traj_mask"], (0, T - t))
+    riv = np.zeros((RIVAL_SLOTS, 3), np.float32)
+    riv_k = np.full(RIVAL_SLOTS, NO_RIVAL, np.int32)
+    if rivals is not None:
+        riv[: len(rivals)], riv_k[: len(rivals)] = rivals, found_at
+    r.update(rivals=riv, rivals_k=riv_k)
+    b = RunInputs(**{f: jnp.asarray(np.asarray(r[f])[None]) for f in RunInputs.__dataclass_fields__})
+    p = DecisionParams.stack([DecisionParams()])
+    out = evaluate(b, maps, None, p, variants())
+    return jax.tree.map(lambda x: np.asarray(x)[0, :, 0, OURS], out)
+
+
+def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
+    """Four identical rooms in a row, walked in the first two only, with the congruence
+    check off (no probe alias): every window's candidate is the truth and the layer commits.
+    The one-room shift of the path is as good an explanation while the walk sees neither end
+    of the row; given as a rival found at prefix k, it blocks the commit from k on
+    (AMBIGUOUS translation, period = the room pitch), not before."""
+    fp = row_of_rooms()
+    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4))
+    run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
+                   fp=fp)  # fmt: skip
+    base = _decide(run, maps)
+    assert base.state[-1] == 2, base.state.tolist()
+    k_c = int(np.argmax(base.state == 2))
+    shifted = np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), A))
+    late = _decide(run, maps, shifted[None], k_c + 1)
+    np.testing.assert_array_equal(late.state[: k_c + 1], base.state[: k_c + 1])
+    at = _decide(run, maps, shifted[None], k_c)
+    np.testing.assert_array_equal(at.state[:k_c], base.state[:k_c])
+    assert at.state[k_c] == 1 and at.kind[k_c] == 1, (at.state.tolist(), at.kind.tolist())
+    assert REASONS[int(at.reason[k_c])] == "competitor not ruled out"
+    assert abs(abs(float(at.tau[k_c][0])) - PITCH) < 0.2
+    # a rival the windows contradict (a half-turn of the path) changes nothing
+    turned = np.asarray(se2.compose(np.array([28.0, 5.0, np.pi]), A))
+    dead = _decide(run, maps, turned[None], 0)
+    np.testing.assert_array_equal(dead.state, base.state)
+
+
+def test_stream_and_batch_search_at_the_same_prefixes_and_agree(monkeypatch):
+    """A robot's stream (``Localizer``) and the batch path (``localize_batch``) search for
+    rivals at the same prefixes (where the layer is about to commit) and report the same
+    decisions."""
+    from mfcl_jax.decision import driver, stream
+    from mfcl_jax.floorplan.scenes import three_rooms as scene_three_rooms
+    from mfcl_jax.localize_batch import localize_batch
+    from mfcl_jax.localizer import Localizer
+    from mfcl_jax.sources.simulated import simulate
+
+    scene = scene_three_rooms()
+    rec = simulate(scene, [next(iter(scene.trajectories))], [0])[0]
+    fp = scene.floorplan
+    calls = {"batch": [], "stream": []}
+
+    def spy(who, real):
+        def f(points, free, fields, p=None, seed=0):
+            calls[who].append(len(points))
+            return real(points, free, fields) if p is None else real(points, free, fields, p)
+
+        return f
+
+    monkeypatch.setattr(driver, "search_rivals", spy("batch", driver.search_rivals))
+    monkeypatch.setattr(stream, "search_rivals", spy("stream", stream.search_rivals))
+    batch = localize_batch([fp], [rec.seq])[0].records
+    online = [r.record() for r in Localizer(fp).run(rec.seq)]
+    assert calls["batch"] and calls["batch"] == calls["stream"]
+    assert [d["state"] for d in batch] == [d["state"] for d in online]
+    assert "COMMIT" in [d["state"] for d in online]
+    for a, b in zip(batch, online, strict=True):
+        if a["anchor"] is not None:
+            np.testing.assert_allclose(list(a["anchor"].values()), list(b["anchor"].values()),
+                                       atol=1e-3)  # fmt: skip

@@ -157,6 +157,8 @@ def decide(
     df, tm = driver.decide(batch, cands, data.floorplans, params, min_iou=min_iou)
     note = f"{batch.runs.n_runs} runs x {batch.runs.n_windows} windows"
     timings.add(label, tm["compile_s"], tm["run_s"], note)
+    if tm.get("searches"):
+        timings.add(f"{label} rival search", 0.0, tm["search_s"], f"{tm['searches']} searches")
     log(f"[{label}] {note}: compile {tm['compile_s']:.1f} s, run {tm['run_s']:.1f} s", progress)
     df = df[df["set"] == 0].drop(columns="set")
     return df

@@ -263,6 +263,11 @@ class SelectiveInitializer:
         self._was_committed = int(d.state) == COMMIT
         return self._report(d, t)
 
+    @property
+    def searches(self) -> int:
+        """Rival searches run so far (``rivals``: one where the layer was about to commit)."""
+        return self._searches
+
     def _decide(self):
         held, d = _decide_latest(
             self.H,

@@ -283,7 +283,9 @@ class SelectiveInitializer:
             self._params,
             self._flags,
             self._held,
-            (self._rivals, self._rivals_k),
+            # no rival slots to score before the first search (masked slots decide nothing;
+            # the kernel with them compiles once, when a search has found rivals)
+            (self._rivals, self._rivals_k) if self._searches else None,
             n_cap=self._n_cap,
         )
         return held, jax.tree.map(np.asarray, d)

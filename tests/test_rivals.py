@@ -6,8 +6,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import REASONS, DecisionParams, RunInputs, evaluate, pad_maps, variants
-from mfcl_jax.decision import decision_maps, policy_names
+from mfcl_jax.decision import (
+    REASONS,
+    DecisionParams,
+    RunInputs,
+    decision_maps,
+    evaluate,
+    pad_maps,
+    policy_names,
+    variants,
+)
 from mfcl_jax.decision.evaluate import NO_RIVAL
 from mfcl_jax.decision.rivals import RIVAL_SLOTS, path_cloud, rival_fields, search_rivals
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
@@ -62,7 +70,9 @@ def _decide(run, maps, rivals=None, found_at=NO_RIVAL):
     if rivals is not None:
         riv[: len(rivals)], riv_k[: len(rivals)] = rivals, found_at
     r.update(rivals=riv, rivals_k=riv_k)
-    b = RunInputs(**{f: jnp.asarray(np.asarray(r[f])[None]) for f in RunInputs.__dataclass_fields__})
+    b = RunInputs(
+        **{f: jnp.asarray(np.asarray(r[f])[None]) for f in RunInputs.__dataclass_fields__}
+    )
     p = DecisionParams.stack([DecisionParams()])
     out = evaluate(b, maps, None, p, variants())
     return jax.tree.map(lambda x: np.asarray(x)[0, :, 0, OURS], out)

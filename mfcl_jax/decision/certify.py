@@ -12,8 +12,8 @@ Competitors: the probe's aliases of ``T*`` (period-shifted copies and rotated im
 building's self-motions), every other consensus group's anchor, each window's best
 candidate outside the winner's neighbourhood (the runner-up explanation of that window, which
 the top-1 consensus never sees), and the rivals of the whole path found by the global search
-where a commit was about to happen (``rivals``). A competitor that places the robot within ``CORRECT`` of
-where ``T*`` does is the same answer and is not a competitor.
+where a commit was about to happen (``rivals``). A competitor that places the robot within
+``CORRECT`` of where ``T*`` does is the same answer and is not a competitor.
 
 Per competitor the advantage ``adv_w = s_w(T*) - s_w(C)`` gives two numbers, the largest and
 the smallest advantage over the windows; ``finish`` compares them with the margin

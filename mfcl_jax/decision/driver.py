@@ -24,6 +24,7 @@ from mfcl_jax.decision.evaluate import NO_RIVAL, batch_inputs, evaluate, policy_
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
 from mfcl_jax.decision.policies import OURS_VARIANTS
 from mfcl_jax.decision.rivals import (
+    DEFAULT_RIVALS,
     RIVAL_SLOTS,
     RivalParams,
     path_cloud,
@@ -96,7 +97,7 @@ def decide(
     buildings_per_call: int = 8,
     run_chunk: int = 8,
     progress=None,
-    rival_params: RivalParams | None = RivalParams(),
+    rival_params: RivalParams | None = DEFAULT_RIVALS,
     primary: str = "ours",
     primary_set: int = 0,
 ) -> tuple[pd.DataFrame, dict]:
@@ -142,7 +143,9 @@ def decide(
 
     def run_chunks(runs, todo):
         parts = []
-        for idx in chunks(rb[todo], runs_per_call, buildings_per_call, keys=k_b[todo] * 65536 + t_b[todo]):
+        for idx in chunks(
+            rb[todo], runs_per_call, buildings_per_call, keys=k_b[todo] * 65536 + t_b[todo]
+        ):
             idx = todo[idx]
             kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
             sub = jax.tree.map(lambda a, i=idx: _pad_rows(np.asarray(a)[i], runs_per_call), runs)

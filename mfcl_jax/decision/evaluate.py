@@ -126,9 +126,7 @@ def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int 
     cores = jax.vmap(cores_at)(jnp.arange(kk))  # (K, 2 modes, ...)
     on = jax.tree.map(lambda x: x[:, 0], cores)
     certs = jax.vmap(
-        lambda k, c: certify_core(
-            k, c, r.H, r.score, r.X, evidence, bounds, maps, p0, rivals
-        )
+        lambda k, c: certify_core(k, c, r.H, r.score, r.X, evidence, bounds, maps, p0, rivals)
     )(jnp.arange(kk), on)  # (K, ...): only the gated variants certify
 
     def ours_prefix(p, c2, cert):

@@ -24,7 +24,14 @@ import numpy as np
 
 from mfcl_jax.frontend import path_search as ps
 
-__all__ = ["RivalParams", "path_cloud", "rival_fields", "search_rivals", "RIVAL_SLOTS"]
+__all__ = [
+    "RivalParams",
+    "DEFAULT_RIVALS",
+    "path_cloud",
+    "rival_fields",
+    "search_rivals",
+    "RIVAL_SLOTS",
+]
 
 
 @dataclass(frozen=True)
@@ -40,7 +47,8 @@ class RivalParams:
     search: ps.SearchParams = ps.SearchParams()
 
 
-RIVAL_SLOTS = RivalParams().n_rivals * RivalParams().max_searches  # static rival capacity
+DEFAULT_RIVALS = RivalParams()
+RIVAL_SLOTS = DEFAULT_RIVALS.n_rivals * DEFAULT_RIVALS.max_searches  # static rival capacity
 
 
 def path_cloud(ev_points, ev_origins, ev_mask, X, k: int, p: RivalParams = RivalParams()):

@@ -24,12 +24,19 @@ from mfcl_jax.batch import EVIDENCE_POINTS, evidence_sample
 from mfcl_jax.decision import gate as gate_mod
 from mfcl_jax.decision import lattice, machine
 from mfcl_jax.decision.anchors import sanitize
+from mfcl_jax.decision.evaluate import NO_RIVAL
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps
 from mfcl_jax.decision.policies import OURS_VARIANTS
-from mfcl_jax.decision.evaluate import NO_RIVAL
-from mfcl_jax.frontend.path_search import PlanFields
-from mfcl_jax.decision.rivals import RIVAL_SLOTS, RivalParams, path_cloud, rival_fields, search_rivals
+from mfcl_jax.decision.rivals import (
+    DEFAULT_RIVALS,
+    RIVAL_SLOTS,
+    RivalParams,
+    path_cloud,
+    rival_fields,
+    search_rivals,
+)
 from mfcl_jax.decision.state import COMMIT, REASONS, STATE_NAMES, DecisionParams, decide_prefix
+from mfcl_jax.frontend.path_search import PlanFields
 
 __all__ = ["Decision", "SelectiveInitializer"]
 
@@ -131,7 +138,7 @@ class SelectiveInitializer:
         j_cap: int = 16,
         t_cap: int = 256,
         n_cap: int = 3,
-        rivals: RivalParams | None = RivalParams(),
+        rivals: RivalParams | None = DEFAULT_RIVALS,
         plan=None,
     ):
         if variant not in OURS_VARIANTS:

@@ -197,7 +197,7 @@ def _with_rivals(dec, runs, rb, floorplans, run_chunks, s0, v0, rp: RivalParams,
     fields: dict = {}
     ts, n_search = 0.0, 0
     wm = np.asarray(runs.window_mask)
-    for _ in range(rp.max_searches):
+    while True:  # ends: every pass searches at least once, at most max_searches per run
         st = np.asarray(dec.state)[:, :, s0, v0] == COMMIT  # (R, K)
         entry = st & ~np.pad(st, ((0, 0), (1, 0)))[:, :-1] & wm
         todo = []

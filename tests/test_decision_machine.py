@@ -62,8 +62,12 @@ def test_commit_persists_through_a_late_ambiguity_and_tracks_drift():
     states = [DEFER, COMMIT, AMBIGUOUS, AMBIGUOUS, DEFER, COMMIT]
     out = _run(states, drift)
     assert list(out.state) == [DEFER] + [COMMIT] * 5
-    # the held anchor follows the per-prefix winner while it stays the same place
-    np.testing.assert_allclose(out.anchor[1:], np.asarray(drift[1:]), atol=1e-5)
+    # the held anchor follows the per-prefix winner half-way each window: it moves toward
+    # the drifting winner and lags it by about one window's drift
+    d = np.asarray(drift)
+    err = np.abs(out.anchor[1:] - d[1:])
+    assert np.all(err[:, 0] <= 0.05 + 1e-5) and np.all(np.diff(out.anchor[1:, 0]) > 0)
+    np.testing.assert_allclose(out.anchor[1], d[1], atol=1e-6)
     assert list(out.reason[1:]) == [0] * 5
 
 
@@ -99,4 +103,25 @@ def test_the_newest_window_candidate_tracks_a_held_anchor_without_champions():
                         jnp.bool_(True))  # fmt: skip
     out = jax.tree.map(np.asarray, out)
     assert list(out.state) == [COMMIT] * 4
-    np.testing.assert_allclose(out.anchor, drifted, atol=1e-5)
+    assert np.all(np.diff(out.anchor[:, 0]) > 0)  # it follows the drift...
+    assert np.all(np.abs(out.anchor[:, 0] - drifted[:, 0]) <= 0.1 + 1e-5)  # one window behind
+
+
+def test_noisy_registrations_do_not_walk_a_commit_off():
+    """A hall pins one direction only: every window's candidates scatter along the other
+    (sd 0.6 m) with scores that say nothing. The tracked anchor must stay within the 1 m of a
+    correct answer over 60 windows; taking the best nearby candidate outright each window
+    wandered past 1 m in about a third of these walks."""
+    k, j = 60, 8
+    worst = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        H = np.broadcast_to(A, (k, j, 3)).copy()
+        H[:, :, 1] += rng.normal(0.0, 0.6, (k, j))
+        score = rng.uniform(0.5, 1.0, (k, j))
+        raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
+        out = machine.track(raw, jnp.asarray(H, jnp.float32), jnp.asarray(score, jnp.float32),
+                            jnp.ones((k, j), bool), jnp.zeros((k, 3)), P, jnp.bool_(True))  # fmt: skip
+        assert np.all(np.asarray(out.state) == COMMIT)
+        worst.append(np.max(np.abs(np.asarray(out.anchor)[:, 1] - A[1])))
+    assert max(worst) < 1.0, worst

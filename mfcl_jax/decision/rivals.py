@@ -123,9 +123,4 @@ def search_rivals(points, free, fields: ps.PlanFields, p: RivalParams = RivalPar
         return np.zeros((0, 3)), np.zeros(0)
     good &= sc >= p.keep_ratio * np.max(sc[good])
     order = np.argsort(-np.where(good, sc, -np.inf))[: min(p.n_rivals, int(good.sum()))]
-    g, sc = g[order], sc[order]
-    # g maps (x - c) into the plan: as an anchor, rotate about c, then translate
-    cg, sg = np.cos(g[:, 2]), np.sin(g[:, 2])
-    tx = g[:, 0] - (cg * c[0] - sg * c[1])
-    ty = g[:, 1] - (sg * c[0] + cg * c[1])
-    return np.stack([tx, ty, g[:, 2]], 1), sc
+    return ps.uncentre(g[order], c), sc[order]

@@ -35,7 +35,14 @@ import numpy as np
 
 from mfcl_jax import se2
 
-__all__ = ["SearchParams", "PlanFields", "plan_fields", "search", "evaluate_placements"]
+__all__ = [
+    "SearchParams",
+    "PlanFields",
+    "plan_fields",
+    "search",
+    "uncentre",
+    "evaluate_placements",
+]
 
 
 @dataclass(frozen=True)
@@ -253,6 +260,16 @@ def search(pts, pok, frees, fok, fields: PlanFields, p: SearchParams, n_img: int
     poses, sc = jax.vmap(polish)(poses)
     sc = jnp.where(jnp.isfinite(vals), sc, -jnp.inf)
     return _nms(poses, sc, p.n_out, 0.5, math.radians(3.0))
+
+
+def uncentre(g, c):
+    """Placements ``g (n, 3)`` of a cloud centred at ``c (2,)`` (they map ``x - c`` into B)
+    as motions of the uncentred cloud: rotate about ``c``, then translate (host, float64)."""
+    g = np.asarray(g, np.float64).reshape(-1, 3)
+    cg, sg = np.cos(g[:, 2]), np.sin(g[:, 2])
+    tx = g[:, 0] - (cg * c[0] - sg * c[1])
+    ty = g[:, 1] - (sg * c[0] + cg * c[1])
+    return np.stack([tx, ty, g[:, 2]], 1)
 
 
 def _through(o, pts, ok, fields, margin, steps):

@@ -190,11 +190,7 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             good = np.isfinite(sc) & (sc >= p.keep_ratio * np.max(sc, initial=0.0))
             g, sc = g[good], sc[good]
             good = np.argsort(-sc)
-            # g maps (x - c) into B: as a motion of B, rotate about c then translate
-            cg, sg = np.cos(g[good, 2]), np.sin(g[good, 2])
-            tx = g[good, 0] - (cg * c[0] - sg * c[1])
-            ty = g[good, 1] - (sg * c[0] + cg * c[1])
-            cands.append(np.stack([tx, ty, g[good, 2]], 1))
+            cands.append(ps.uncentre(g[good], c))
             scores.append(sc[good])
         order = np.argsort(-np.concatenate(scores), kind="stable")  # strongest first
         G = _dedupe(np.concatenate([np.zeros((1, 3)), np.concatenate(cands)[order]]))

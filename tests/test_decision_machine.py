@@ -120,8 +120,9 @@ def test_noisy_registrations_do_not_walk_a_commit_off():
         H[:, :, 1] += rng.normal(0.0, 0.6, (k, j))
         score = rng.uniform(0.5, 1.0, (k, j))
         raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
-        out = machine.track(raw, jnp.asarray(H, jnp.float32), jnp.asarray(score, jnp.float32),
-                            jnp.ones((k, j), bool), jnp.zeros((k, 3)), P, jnp.bool_(True))  # fmt: skip
+        h, s = jnp.asarray(H, jnp.float32), jnp.asarray(score, jnp.float32)
+        ok = jnp.ones((k, j), bool)
+        out = machine.track(raw, h, s, ok, jnp.zeros((k, 3)), P, jnp.bool_(True))
         assert np.all(np.asarray(out.state) == COMMIT)
         worst.append(np.max(np.abs(np.asarray(out.anchor)[:, 1] - A[1])))
     assert max(worst) < 1.0, worst

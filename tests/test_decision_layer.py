@@ -253,6 +253,30 @@ def test_multimodal_in_non_congruent_rooms():
     assert (d.kind == 2).any()
 
 
+def test_a_runner_up_group_the_scans_rule_out_does_not_hold_the_margin():
+    """Champions alternate between the truth and the same path 7 m along, in the smaller room
+    (gate-feasible, non-congruent): the raw counts tie (B1 = B2), so the paper's layer stays
+    AMBIGUOUS; the scans contradict the shifted placement, so under the certification that
+    group no longer counts against the winner and ours commits, at the truth."""
+    maps3 = maps_of(three_rooms())
+    path = [[8, 1.5], [12.5, 1.5], [12.5, 4.5], [8, 4.5], [8, 1.5], [12.5, 1.5]]
+
+    def cands(k, Y):
+        return [(Y, 1.0), (shift(Y, -7.0), 1.1 if k % 2 else 0.8)]
+
+    run = make_run(walk(path), A, K, cands, J=J, fp=three_rooms())
+    out = evaluate_runs([run], maps=maps3)
+    paper = jax.tree.map(lambda x: x[0, :, 0, NAMES.index("paper")], out)
+    d = ours(out)
+    assert 2 not in paper.state.tolist()
+    assert paper.b2[4] == 2 and paper.b1[4] == 3  # tied in the raw counts
+    assert d.state[4] == 2 and d.b2[4] == 0 and d.margin[4] == 3
+    com = d.state == 2
+    assert com[4:].all()
+    dxy, dth = se2.distance_pair(d.anchor[com], A[None])
+    assert float(np.max(dxy)) < 0.05 and float(np.max(dth)) < 1e-3
+
+
 def test_threshold_sweep_does_not_recompile():
     run = run_of(lattice_cands)
     evaluate_runs([run])

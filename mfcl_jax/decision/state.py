@@ -19,6 +19,13 @@ Order of tests (first that fires wins):
    ``Decisions.alias_motion``), else COMMIT(T*)
 8. otherwise -> AMBIGUOUS (multimodal with >= 2 groups, no kind with one group)
 
+With the certification on (``ours``), the runner-up support ``B2`` in the margin (tests 6-7)
+counts only the groups whose anchors the scans have not ruled out (``certify``: some window
+contradicts the group's anchor by ``cert_margin`` and none favours it): a group of champions
+that every re-scored window contradicts is not an explanation of the path, however many
+windows' top-1 it was. Without the certification (``paper``, ``no_probe``, ...) every group
+counts, as in the paper. ``Decisions.b2``/``margin`` report the counts the rule used.
+
 ``T*`` (the reported anchor, ``Decisions.anchor``) is the mean of the winner's most recent
 champions (``DecisionParams.recent``); tests 5 and 7 (winner gate, probe) use it because it
 is the anchor a commit hands over. ``rooms`` (rooms spanned under ``T*``) is reported as a
@@ -281,7 +288,18 @@ def finish(
     g = core.groups
     kk = g.size.shape[0]
     live = jnp.arange(kk) < g.n_groups
-    tied = live & ((g.b1 - g.indep).astype(jnp.float32) < delta_min)
+    m = p.cert_margin
+    against = cert.max_adv >= m
+    favoured = cert.min_adv <= -m
+    live_c = cert.valid & ~(against & ~favoured) & use_cert
+    # Under the certification a runner-up group counts against the winner only while the
+    # scans have not ruled its anchor out (competitors A .. A + K are the groups' anchors).
+    n_a = core.probe_result.aliases.shape[0]
+    rival_group = live & (jnp.arange(kk) != g.winner)
+    counted = rival_group & (live_c[n_a : n_a + kk] | ~use_cert)
+    b2 = jnp.max(jnp.where(counted, g.indep, 0)).astype(g.b2.dtype)
+    tied = (counted | (jnp.arange(kk) == g.winner)) & live
+    tied = tied & ((g.b1 - g.indep).astype(jnp.float32) < delta_min)
     lat_ok, lat_tau = lattice.detect_from(
         core.fit, tied, g.winner, maps.offsets, maps.offsets_mask, p.eps_t, p.eps_theta
     )
@@ -293,14 +311,10 @@ def finish(
     r_alias = pr.rot_alias & use_probe
     r_c = jnp.where(use_probe, pr.c_rot, jnp.zeros_like(pr.c_rot))
     gate_w = (pr.c_winner >= p.tau_c) | ~use_gate
-    b1, margin = g.b1.astype(jnp.float32), g.margin.astype(jnp.float32)
+    b1, margin = g.b1.astype(jnp.float32), (g.b1 - b2).astype(jnp.float32)
     decisive = (b1 >= b_min) & (margin >= delta_min)
     # certification: a competitor is ruled out when some window contradicts it and none
     # favours it; T* is dominated when a competitor is favoured somewhere, contradicted nowhere
-    m = p.cert_margin
-    against = cert.max_adv >= m
-    favoured = cert.min_adv <= -m
-    live_c = cert.valid & ~(against & ~favoured) & use_cert
     dominated = jnp.any(cert.valid & favoured & ~against) & use_cert
     strongest = jnp.argmin(jnp.where(live_c, cert.max_adv, jnp.inf))
     rival = cert.anchor[strongest]
@@ -347,8 +361,8 @@ def finish(
         anchor=g.t_star,
         tau=jnp.where(kind == lattice.TRANSLATION, tau, 0.0),
         b1=g.b1,
-        b2=g.b2,
-        margin=g.margin,
+        b2=b2,
+        margin=g.b1 - b2,
         n_groups=g.n_groups,
         n_champions=core.n_champions,
         spread=g.spread,

@@ -107,7 +107,7 @@ TERM_TEXT = {
     "B1": "support of the best placement: how many windows that share no scan have their "
     "best registration agree with it (independent evidence for it).",
     "B2": "support of the runner-up, a different placement, counted the same way (the "
-    "evidence against).",
+    "evidence against); a placement that the scans already contradict is not counted.",
     "margin": "B1 - B2. A COMMIT needs B1 >= b_min (3) and margin >= delta_min (2); then "
     "every competing placement (symmetric copies, other groups, each window's runner-up) must "
     "be contradicted by the scans of some window and favoured by none.",

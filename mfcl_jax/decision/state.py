@@ -293,7 +293,8 @@ def finish(
     favoured = cert.min_adv <= -m
     live_c = cert.valid & ~(against & ~favoured) & use_cert
     # Under the certification a runner-up group counts against the winner only while the
-    # scans have not ruled its anchor out (competitors A .. A + K are the groups' anchors).
+    # scans have not ruled its anchor out. ``certify.competitors`` lists the probe's aliases,
+    # the groups' anchors, the runner-ups and the rivals, in that order: slots A .. A + K.
     n_a = core.probe_result.aliases.shape[0]
     rival_group = live & (jnp.arange(kk) != g.winner)
     counted = rival_group & (live_c[n_a : n_a + kk] | ~use_cert)

@@ -109,7 +109,7 @@ def test_stream_and_batch_search_at_the_same_prefixes_and_agree(monkeypatch):
     """A robot's stream (``Localizer``) and the batch path (``localize_batch``) search for
     rivals at the same prefixes (where the layer is about to commit) and report the same
     decisions."""
-    from mfcl_jax.decision import driver, stream
+    from mfcl_jax.decision import rivals
     from mfcl_jax.floorplan.scenes import three_rooms as scene_three_rooms
     from mfcl_jax.localize_batch import localize_batch
     from mfcl_jax.localizer import Localizer
@@ -119,17 +119,16 @@ def test_stream_and_batch_search_at_the_same_prefixes_and_agree(monkeypatch):
     rec = simulate(scene, [next(iter(scene.trajectories))], [0])[0]
     fp = scene.floorplan
     calls = {"batch": [], "stream": []}
+    phase = ["batch"]  # both paths search through rivals.search_into: calls split by phase
+    real = rivals.search_rivals
 
-    def spy(who, real):
-        def f(points, free, fields, p=None, seed=0):
-            calls[who].append(len(points))
-            return real(points, free, fields) if p is None else real(points, free, fields, p)
+    def spy(points, free, fields, p=None, seed=0):
+        calls[phase[0]].append(len(points))
+        return real(points, free, fields) if p is None else real(points, free, fields, p)
 
-        return f
-
-    monkeypatch.setattr(driver, "search_rivals", spy("batch", driver.search_rivals))
-    monkeypatch.setattr(stream, "search_rivals", spy("stream", stream.search_rivals))
+    monkeypatch.setattr(rivals, "search_rivals", spy)
     batch = localize_batch([fp], [rec.seq])[0].records
+    phase[0] = "stream"
     online = [r.record() for r in Localizer(fp).run(rec.seq)]
     assert calls["batch"] and calls["batch"] == calls["stream"]
     assert [d["state"] for d in batch] == [d["state"] for d in online]

@@ -27,9 +27,8 @@ from mfcl_jax.decision.rivals import (
     DEFAULT_RIVALS,
     RIVAL_SLOTS,
     RivalParams,
-    path_cloud,
     rival_fields,
-    search_rivals,
+    search_into,
 )
 from mfcl_jax.decision.state import COMMIT, DecisionParams
 
@@ -210,14 +209,10 @@ def _with_rivals(dec, runs, rb, floorplans, run_chunks, s0, v0, rp: RivalParams,
             if b not in fields:
                 fields[b] = rival_fields(floorplans[b], rp)
             t0 = time.perf_counter()
-            pts, free = path_cloud(runs.ev_points[r], runs.ev_origins[r], runs.ev_mask[r],
-                                   np.asarray(runs.X[r], np.float64), k, rp)  # fmt: skip
-            A, _ = search_rivals(pts, free, fields[b], rp)
+            ev = (runs.ev_points[r], runs.ev_origins[r], runs.ev_mask[r])
+            search_into(riv[r], riv_k[r], int(n_done[r]), ev, runs.X[r], k, fields[b], rp)
             ts += time.perf_counter() - t0
             n_search += 1
-            slot = int(n_done[r]) * rp.n_rivals
-            riv[r, slot : slot + len(A)] = A
-            riv_k[r, slot : slot + len(A)] = k
             last[r], n_done[r] = k, n_done[r] + 1
             todo.append(r)
         if not todo:

@@ -30,6 +30,7 @@ __all__ = [
     "path_cloud",
     "rival_fields",
     "search_rivals",
+    "search_into",
     "RIVAL_SLOTS",
 ]
 
@@ -124,3 +125,27 @@ def search_rivals(points, free, fields: ps.PlanFields, p: RivalParams = RivalPar
     good &= sc >= p.keep_ratio * np.max(sc[good])
     order = np.argsort(-np.where(good, sc, -np.inf))[: min(p.n_rivals, int(good.sum()))]
     return ps.uncentre(g[order], c), sc[order]
+
+
+def search_into(slots, slots_k, n_done: int, evidence, X, k: int, fields: ps.PlanFields,
+                p: RivalParams = RivalParams()) -> int:  # fmt: skip
+    """One search where a run is about to commit at prefix ``k``, written into its rival slots.
+
+    The one path shared by the batch driver and the stream, so both search the same cloud and
+    fill the same slots.
+
+    Args:
+        slots: ``(RIVAL_SLOTS, 3)`` the run's rival anchors, written in place at search
+            ``n_done`` (slots ``n_done * n_rivals`` on); slots_k: ``(RIVAL_SLOTS,)`` the prefix
+            each was found at, written likewise.
+        evidence: ``(ev_points, ev_origins, ev_mask)`` of the run's windows; X: ``(K, 3)``.
+
+    Returns:
+        The number of rivals found.
+    """
+    pts, free = path_cloud(*evidence, np.asarray(X, np.float64), k, p)
+    A, _ = search_rivals(pts, free, fields, p)
+    slot = n_done * p.n_rivals
+    slots[slot : slot + len(A)] = A
+    slots_k[slot : slot + len(A)] = k
+    return len(A)

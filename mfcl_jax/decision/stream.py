@@ -31,9 +31,8 @@ from mfcl_jax.decision.rivals import (
     DEFAULT_RIVALS,
     RIVAL_SLOTS,
     RivalParams,
-    path_cloud,
     rival_fields,
-    search_rivals,
+    search_into,
 )
 from mfcl_jax.decision.state import COMMIT, REASONS, STATE_NAMES, DecisionParams, decide_prefix
 from mfcl_jax.frontend.path_search import PlanFields
@@ -257,13 +256,9 @@ class SelectiveInitializer:
         rp = self._rival_params
         if entering and rp is not None and self._searches < rp.max_searches:
             # about to commit: search the whole path for rivals, then decide this prefix again
-            k = self.k - 1
-            pts, free = path_cloud(self.ev_points, self.ev_origins, self.ev_mask,
-                                   self.X.astype(np.float64), k, rp)  # fmt: skip
-            A, _ = search_rivals(pts, free, self._fields, rp)
-            slot = self._searches * rp.n_rivals
-            self._rivals[slot : slot + len(A)] = A
-            self._rivals_k[slot : slot + len(A)] = k
+            ev = (self.ev_points, self.ev_origins, self.ev_mask)
+            search_into(self._rivals, self._rivals_k, self._searches, ev, self.X, self.k - 1,
+                        self._fields, rp)  # fmt: skip
             self._searches += 1
             held, d = self._decide()
         self._held = held

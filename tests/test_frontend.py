@@ -244,6 +244,54 @@ def test_refinement_gradient_is_the_score_gradient(asym):
         FrontendParams(refine_lr=0.01)
 
 
+def corridor_plan() -> Floorplan:
+    """A 30 m x 2 m corridor with one room off its west end (no symmetry)."""
+    walls = [
+        [[0, 0], [30, 0]],
+        [[30, 0], [30, 2]],
+        [[30, 2], [8, 2]],
+        [[8, 2], [8, 8]],
+        [[8, 8], [0, 8]],
+        [[0, 8], [0, 0]],
+    ]
+    rooms = (Room("C", box(0.1, 0.1, 29.9, 1.9).union(box(0.1, 1.9, 7.9, 7.9))),)
+    return Floorplan(walls=np.asarray(walls, float), thickness=0.2, rooms=rooms, name="corr")
+
+
+def test_dense_hypotheses_place_a_submap_without_corners():
+    """Mid-corridor, 4 m of range: two parallel walls, no corner, so the corner Hough has no
+    peak (reason 3 without the dense hypotheses). The dense peaks recover the heading and the
+    offset across the corridor, which is all the scan determines."""
+    fp = corridor_plan()
+    sub = make_submap(fp, (14.0, 0.6), (16.5, 0.6), 0.0, n_beams=240, max_range=4.0)
+    b = pad_batch([sub])
+    off = FrontendParams(dense_n=0)
+    r = pad_to(fp.rasterize(0.10), SHAPE, n_rooms=8)
+    c_off = make_register(off)(b, build_features(fp, off, rasters=r))
+    assert int(c_off.reason[0]) == 3 and not np.asarray(c_off.mask[0]).any()
+    c = REG(b, feats_for(fp))
+    assert int(c.reason[0]) == 0
+    m = np.asarray(c.mask[0])
+    pose = np.asarray(c.pose[0])[m]
+    dth = np.abs(np.angle(np.exp(1j * pose[:, 2])))
+    good = (np.abs(pose[:, 1] - 0.6) < 0.1) & (dth < math.radians(1.0))
+    assert good.any(), pose[:5]
+    # the best candidate is somewhere along the corridor (or turned round in it)
+    assert 0.0 < pose[0, 1] < 2.0 and pose[0, 0] > 8.0
+
+
+def test_plan_wall_directions():
+    from mfcl_jax.frontend.dense import plan_directions
+
+    pos, a1, a2, kind, valid = floorplan_corners(asym_plan(), capacity=64)
+    dirs, ok = plan_directions(a1, a2, valid, 3)
+    d = np.degrees(dirs[ok])
+    assert len(d) >= 2
+    assert sorted(np.round(d[:2], 3).tolist()) == [0.0, 90.0]
+    dirs, ok = plan_directions(a1, a2, np.zeros_like(np.asarray(valid)), 3)
+    assert not ok.any()
+
+
 def test_common_features_one_trace_for_both_buildings():
     fps = [get_scene(n).floorplan for n in ("three_rooms", "symmetric_bays")]
     fa, fb = common_features(fps, PARAMS)

@@ -1,9 +1,9 @@
 """The per-submap front-end pipeline, in two halves batched differently.
 
 ``features_of`` (compact -> subsample -> line Hough -> corners -> corner-pair pose votes ->
-accumulator peaks) runs submap after submap (``lax.map``): its scatter, window maxima and
-pairwise vote tables are each one submap's few hundred kilobytes, cache-resident, where a
-chunk-wide batch streams tens of megabytes through memory (3x slower on XLA:CPU).
+accumulator peaks, plus the dense correlative peaks of ``dense.py``) runs submap after
+submap (``lax.map``): its scatter, window maxima, pairwise vote tables and correlation
+images are each one submap's few hundred kilobytes, cache-resident, where a chunk-wide batch streams tens of megabytes through memory (3x slower on XLA:CPU).
 ``candidates_of`` (prescreen -> full score -> refinement -> re-score -> dedupe) is
 ``vmap``-ped over the chunk: its loops are per-pose field lookups, and batching amortises
 the per-step cost of the refinement loop over the chunk.
@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.frontend import features, hough, refine, verify
+from mfcl_jax.frontend import dense, features, hough, refine, verify
 
 __all__ = ["STAGES", "TRACE_COUNT", "features_of", "candidates_of", "run"]
 
@@ -57,7 +57,7 @@ def features_of(points, origins, mask, feats, p, stop=None):
 
     Returns:
         dict with the compacted ``points``, ``origins``, ``mask``, ``n_valid``, the accumulator
-        ``peaks (n_prescreen, 3)`` and ``peak_ok``, and the debug counts ``n_lines``,
+        ``peaks (n_prescreen + dense_n, 3)`` and ``peak_ok``, and the debug counts ``n_lines``,
         ``n_corners``, ``walls``; or the output of stage ``stop`` when it is in this half.
     """
     TRACE_COUNT[0] += 1  # Python side effect: runs at trace time only
@@ -76,6 +76,10 @@ def features_of(points, origins, mask, feats, p, stop=None):
     if stop == "votes":
         return votes, w
     peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
+    if p.dense_n > 0:
+        d_pose, d_ok = dense.peaks(pts, org, ok, lines, feats.dense, p)
+        peaks = jnp.concatenate([peaks, d_pose])
+        peak_ok = jnp.concatenate([peak_ok, d_ok])
     if stop == "peaks":
         return peaks, peak_ok
     return dict(

@@ -2,7 +2,9 @@
 host-side input hygiene, and a CSV adapter for external front-ends.
 
 Pipeline per submap (``pipeline.py``): subsample -> line Hough -> corners -> corner-pair pose
-votes -> top ``n_prescreen`` accumulator peaks -> cheap score on ``prescreen_points`` points ->
+votes -> top ``n_prescreen`` accumulator peaks, plus ``dense_n`` dense correlative peaks
+(``dense.py``: wall directions fix the heading, an FFT correlation the translation; they need
+no corners) -> cheap score on ``prescreen_points`` points ->
 best ``n_hough`` -> full score -> best ``J`` -> Gauss-Newton refinement -> re-score -> keep the
 refined pose where the score improved -> sort + dedupe. Every score is the same continuous
 ``verify.score`` at width ``sigma_occ``.
@@ -31,6 +33,7 @@ import numpy as np
 from mfcl_jax.batch import Candidates, SubmapBatch
 from mfcl_jax.floorplan.raster import Rasters, pad_to
 from mfcl_jax.frontend import features, pipeline, verify
+from mfcl_jax.frontend.dense import DenseFields, dense_fields
 from mfcl_jax.frontend.pipeline import STAGES, TRACE_COUNT
 
 __all__ = [
@@ -116,6 +119,15 @@ class FrontendParams:
     # final de-duplication of refined candidates
     dedupe_xy: float = 0.30
     dedupe_deg: float = 2.0
+    # dense correlative hypotheses (dense.py), added to the accumulator peaks; 0 turns them off
+    dense_n: int = 24  # polished dense peaks per submap
+    dense_img: int = 96  # submap image side (coarse cells) of the correlation
+    dense_res: float = 0.4  # coarse cell (m), rounded to a multiple of the raster cell
+    dense_sub_dirs: int = 2  # submap wall directions
+    dense_plan_dirs: int = 3  # plan wall directions
+    dense_peaks_per_yaw: int = 3
+    dense_lam: float = 1.0  # weight of the obstacle penalty (as the rival search)
+    dense_polish_points: int = 128
 
     def __post_init__(self):
         if self.refine_lr is not None:
@@ -123,6 +135,11 @@ class FrontendParams:
                 f"FrontendParams: refine_lr={self.refine_lr!r} is no longer used "
                 "(refinement steps are Gauss-Newton-preconditioned, no learning "
                 "rate); use refine_steps, sigma_refine, refine_max_step, yaw_lever"
+            )
+        if self.dense_n < 0 or self.dense_lam < 0:
+            raise ValueError(
+                f"FrontendParams: need dense_n >= 0 and dense_lam >= 0, got {self.dense_n=}, "
+                f"{self.dense_lam=}"
             )
         if not 1 <= self.J <= self.n_hough <= self.n_prescreen <= self.max_votes:
             raise ValueError(
@@ -139,6 +156,11 @@ class FrontendParams:
             "ray_samples",
             "prescreen_points",
             "refine_steps",
+            "dense_img",
+            "dense_sub_dirs",
+            "dense_plan_dirs",
+            "dense_peaks_per_yaw",
+            "dense_polish_points",
         ):
             if getattr(self, name) < 1:
                 raise ValueError(f"FrontendParams: {name} must be >= 1, got {getattr(self, name)}")
@@ -152,6 +174,7 @@ class FrontendParams:
             "sigma_refine",
             "refine_max_step",
             "yaw_lever",
+            "dense_res",
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FrontendParams: {name} must be > 0, got {getattr(self, name)}")
@@ -167,6 +190,7 @@ class FloorplanFeatures:
         pen4: ``(H + 1, W + 1, 4)`` free-space penalty field, same layout.
         corner_pos: ``(C, 2)``; corner_a1, corner_a2: ``(C,)`` edge angles (rad);
         corner_kind: ``(C,)`` int32; corner_valid: ``(C,)`` bool.
+        dense: ``dense.DenseFields`` (the dense hypotheses' plan fields and wall directions).
     """
 
     rasters: Rasters
@@ -177,6 +201,7 @@ class FloorplanFeatures:
     corner_a2: jax.Array
     corner_kind: jax.Array
     corner_valid: jax.Array
+    dense: DenseFields
 
     @property
     def plan_corners(self) -> tuple:
@@ -201,6 +226,7 @@ jax.tree_util.register_dataclass(
         "corner_a2",
         "corner_kind",
         "corner_valid",
+        "dense",
     ],
     meta_fields=[],
 )
@@ -276,6 +302,7 @@ def build_features(
         corner_a2=jnp.asarray(a2, jnp.float32).reshape(-1),
         corner_kind=jnp.asarray(kind, jnp.int32).reshape(-1),
         corner_valid=jnp.asarray(valid, bool).reshape(-1),
+        dense=dense_fields(rasters, a1, a2, valid, params),
     )
 
 

@@ -3,7 +3,8 @@
 ``features_of`` (compact -> subsample -> line Hough -> corners -> corner-pair pose votes ->
 accumulator peaks, plus the dense correlative peaks of ``dense.py``) runs submap after
 submap (``lax.map``): its scatter, window maxima, pairwise vote tables and correlation
-images are each one submap's few hundred kilobytes, cache-resident, where a chunk-wide batch streams tens of megabytes through memory (3x slower on XLA:CPU).
+images are each one submap's few hundred kilobytes, cache-resident, where a chunk-wide batch
+streams tens of megabytes through memory (3x slower on XLA:CPU).
 ``candidates_of`` (prescreen -> full score -> refinement -> re-score -> dedupe) is
 ``vmap``-ped over the chunk: its loops are per-pose field lookups, and batching amortises
 the per-step cost of the refinement loop over the chunk.

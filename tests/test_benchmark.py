@@ -7,6 +7,7 @@ decisions -> particle filter -> scores -> tables and figures.
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -134,3 +135,32 @@ def test_comma_lists_batch_in_one_run_and_split_per_job_in_a_multirun():
         "-m", "families=[plain],[bays]", "seeds=2"
     ]  # fmt: skip
     assert batch_comma_lists(["-m", "faults=[]"]) == ["-m", "faults=[]"]
+
+
+def test_frontend_recall_scores_the_best_candidate_and_any():
+    from mfcl_jax.batch import Candidates
+    from mfcl_jax.bench.recall import recall_table, window_hits
+
+    pose = np.array([[[5.0, 0.0, 0.0], [0.2, 0.1, 0.02], [0.0, 0.0, 0.0]]] * 2, np.float32)
+    score = np.array([[0.9, 0.5, 0.0], [0.4, 0.8, 0.0]], np.float32)
+    mask = np.array([[True, True, False], [True, True, False]])
+    c = Candidates(pose, score, mask, np.zeros(2, np.int32))
+    Y = np.zeros(3)
+    assert window_hits(c, 0, Y) == (2, False, True)  # best is 5 m off; the runner-up is right
+    assert window_hits(c, 1, Y) == (2, True, True)
+    c0 = Candidates(pose, score, np.zeros_like(mask), np.full(2, 3, np.int32))
+    assert window_hits(c0, 0, Y) == (0, False, False)
+    assert window_hits(c, 0, np.array([0.0, 0.0, np.radians(7.0)])) == (2, False, False)
+    rows = pd.DataFrame(
+        dict(
+            family=["a", "a", "b"],
+            variant="v",
+            k=[1, 2, 1],
+            n=[0, 3, 3],
+            top1=[False, True, True],
+            any=[False, True, True],
+        )  # fmt: skip
+    )
+    t = recall_table(rows).set_index("family")
+    assert t.loc["a", "windows"] == 2 and t.loc["a", "none"] == 0.5 and t.loc["a", "top1"] == 0.5
+    assert t.loc["all", "windows"] == 3 and abs(t.loc["all", "top1"] - 2 / 3) < 1e-12

@@ -64,8 +64,8 @@ REASON_TEXT = {
     ),
     "no anchors": (
         "no registration found yet",
-        "The front-end found no candidate placement for any window yet (too few wall points "
-        "or corners in the scans so far).",
+        "The front-end found no candidate placement for any window yet (too few points, or "
+        "no straight wall seen in the scans so far).",
     ),
     "alias without period": (
         "a shifted copy fits, with no period",

@@ -332,7 +332,10 @@ def roofline(p, inc) -> str:
         f"(four per lookup) from cells scattered over the plan. Pose accumulator: at most "
         f"{w['peaks'] / 1e3:.0f} k pairwise window tests per submap (the tables run on the "
         f"smallest of {p.max_votes // 4}, {p.max_votes // 2}, {p.max_votes} votes that holds "
-        f"the valid ones; most submaps cast about 100) in {inc['peaks']:.2f} ms."
+        f"the valid ones; most submaps cast about 100) in {inc['peaks']:.2f} ms. Dense "
+        f"hypotheses (one FFT correlation per distinct heading over the plan, then "
+        f"{p.dense_n} polished peaks): {inc['dense']:.2f} ms, "
+        f"{100 * inc['dense'] / sum(inc.values()):.0f}% of the time."
     )
 
 

@@ -31,13 +31,14 @@ STAGES = (
     "corners",
     "votes",
     "peaks",
+    "dense",
     "prescreen",
     "score",
     "refine",
     "rescore",
     "dedupe",
 )
-_FEATURE_STAGES = STAGES[:4]
+_FEATURE_STAGES = STAGES[:5]
 
 # Incremented each time the pipeline is traced (tests assert one trace per shape bucket).
 TRACE_COUNT = [0]
@@ -77,11 +78,13 @@ def features_of(points, origins, mask, feats, p, stop=None):
     if stop == "votes":
         return votes, w
     peaks, _, peak_ok, _, _ = hough.vote(votes, w, p, p.n_prescreen)
+    if stop == "peaks":
+        return peaks, peak_ok
     if p.dense_n > 0:
         d_pose, d_ok = dense.peaks(pts, org, ok, lines, feats.dense, p)
         peaks = jnp.concatenate([peaks, d_pose])
         peak_ok = jnp.concatenate([peak_ok, d_ok])
-    if stop == "peaks":
+    if stop == "dense":
         return peaks, peak_ok
     return dict(
         points=points,

@@ -158,42 +158,27 @@ def _coarse(pts, pok, frees, fok, dense: DenseFields, yaws, yok, p):
     f = dense.fields
     res, n = f.c_res, p.dense_img
     half = n * res / 2
-    hc, wc = f.c_hit.shape
-    fh, fw = hc + n, wc + n
+    plan_shape = f.c_hit.shape
+    size = (plan_shape[0] + n, plan_shape[1] + n)
     npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
     nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
-    sy = jnp.where(jnp.arange(fh) < hc, jnp.arange(fh), jnp.arange(fh) - fh)
-    sx = jnp.where(jnp.arange(fw) < wc, jnp.arange(fw), jnp.arange(fw) - fw)
-    cy, cx = sy[:, None] + n // 2, sx[None, :] + n // 2
-    inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
-
-    def one(th):
-        th, go = th
-        return jax.lax.cond(go, heading, skip, th)
-
-    def skip(th):
-        k = p.dense_peaks_per_yaw
-        return jnp.zeros((k, 3), jnp.float32), jnp.full((k,), -jnp.inf, jnp.float32)
+    k = p.dense_peaks_per_yaw
 
     def heading(th):
         R = jnp.asarray([[jnp.cos(th), -jnp.sin(th)], [jnp.sin(th), jnp.cos(th)]])
-        img_p = ps._splat(pts @ R.T, pok, n, res, half) / npts
-        img_f = ps._splat(frees @ R.T, fok, n, res, half) * (p.dense_lam / nfree)
-        spec = dense.f_hit * jnp.conj(jnp.fft.rfft2(img_p, (fh, fw)))
-        spec = spec - dense.f_bad * jnp.conj(jnp.fft.rfft2(img_f, (fh, fw)))
-        sc = jnp.where(inside, jnp.fft.irfft2(spec, (fh, fw)), -jnp.inf)
-        pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
-        val, idx = jax.lax.top_k(jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1),
-                                 p.dense_peaks_per_yaw)  # fmt: skip
-        iy, ix = idx // fw, idx % fw
-        tx = f.origin[0] + half + sx[ix].astype(jnp.float32) * res
-        ty = f.origin[1] + half + sy[iy].astype(jnp.float32) * res
-        return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1).astype(jnp.float32), val.astype(
-            jnp.float32
-        )
+        img_p = ps.splat(pts @ R.T, pok, n, res, half) / npts
+        img_f = ps.splat(frees @ R.T, fok, n, res, half) * (p.dense_lam / nfree)
+        # hit minus penalty, summed in the frequency domain: one inverse transform
+        spec = dense.f_hit * jnp.conj(jnp.fft.rfft2(img_p, size))
+        spec = spec - dense.f_bad * jnp.conj(jnp.fft.rfft2(img_f, size))
+        g, v = ps.map_peaks(jnp.fft.irfft2(spec, size), th, plan_shape, n, res, f.origin, k)
+        return g.astype(jnp.float32), v.astype(jnp.float32)
+
+    def skip(th):
+        return jnp.zeros((k, 3), jnp.float32), jnp.full((k,), -jnp.inf, jnp.float32)
 
     # sequential over headings so that a skipped (invalid or duplicate) one costs nothing
-    poses, vals = jax.lax.map(one, (yaws, yok))
+    poses, vals = jax.lax.map(lambda a: jax.lax.cond(a[1], heading, skip, a[0]), (yaws, yok))
     vals = jnp.where(yok[:, None], vals, -jnp.inf)
     return poses.reshape(-1, 3), vals.reshape(-1)
 
@@ -216,19 +201,13 @@ def peaks(pts, org, ok, lines, dense: DenseFields, p):
     frees, fok = _free(q, o, ok)
     yaws, yok = headings(lines, dense, p)
     g, val = _coarse(q, ok, frees, fok, dense, yaws, yok, p)
-    g, val = ps._nms(g, val, p.dense_n, 1.0, math.radians(6.0))
+    g, val = ps.nms(g, val, p.dense_n, 1.0, math.radians(6.0))
     sp = max(1, q.shape[0] // p.dense_polish_points)
     sf = max(1, frees.shape[0] // p.dense_polish_points)
     qq, qok, ff, ffok = q[::sp], ok[::sp], frees[::sf], fok[::sf]
-
-    def polish(gi):
-        gi, _ = ps._polish(gi, qq, qok, ff, ffok, dense.fields, p.dense_lam, 0.12,
-                           math.radians(1.2), 2)  # fmt: skip
-        gi, _ = ps._polish(gi, qq, qok, ff, ffok, dense.fields, p.dense_lam, 0.04,
-                           math.radians(0.4), 1)  # fmt: skip
-        return gi
-
-    g = jax.vmap(polish)(g)
+    g, _ = jax.vmap(
+        lambda gi: ps.refine_placement(gi, qq, qok, ff, ffok, dense.fields, p.dense_lam)
+    )(g)
     good = jnp.isfinite(val)
     # placements of the centred cloud -> poses of the submap frame
     cg, sg = jnp.cos(g[:, 2]), jnp.sin(g[:, 2])

@@ -42,6 +42,11 @@ __all__ = [
     "search",
     "uncentre",
     "evaluate_placements",
+    "splat",
+    "map_peaks",
+    "polish",
+    "refine_placement",
+    "nms",
 ]
 
 
@@ -147,7 +152,7 @@ def _score(g, pts, pok, frees, fok, fields, lam):
     return mh - lam * mb
 
 
-def _splat(xy, ok, n, res, half):
+def splat(xy, ok, n, res, half):
     """Bilinear splat of points ``xy (M, 2)`` (centred) into an ``(n, n)`` image."""
     u = (xy[:, 0] + half) / res - 0.5
     v = (xy[:, 1] + half) / res - 0.5
@@ -161,6 +166,37 @@ def _splat(xy, ok, n, res, half):
         good = ok & (iu >= 0) & (iu < n) & (iv >= 0) & (iv < n)
         img = img.at[jnp.where(good, iv * n + iu, 0)].add(jnp.where(good, wgt, 0.0))
     return img.reshape(n, n)
+
+
+def map_peaks(sc, th, plan_shape, n_img: int, res: float, origin, k: int):
+    """The ``k`` best local maxima (5 x 5 cells) of one heading's correlation map.
+
+    Args:
+        sc: ``(Hc + n_img, Wc + n_img)`` score per shift, stored modulo the map size (shift
+            ``s`` of the centred cloud image against the plan grid, ``s = -(n-1) .. Hc-1``).
+        th: the heading; plan_shape: ``(Hc, Wc)`` coarse plan grid; n_img: cloud image side;
+        res: coarse cell (m); origin: ``(2,)`` plan grid corner; k: peaks kept (static).
+
+    Returns:
+        ``(poses (k, 3), vals (k,))``: placements of the centred cloud; shifts that move the
+        cloud's centre outside the plan grid are not placements (``-inf``).
+    """
+    hc, wc = plan_shape
+    fh, fw = sc.shape
+    half = n_img * res / 2
+    sy = jnp.where(jnp.arange(fh) < hc, jnp.arange(fh), jnp.arange(fh) - fh)
+    sx = jnp.where(jnp.arange(fw) < wc, jnp.arange(fw), jnp.arange(fw) - fw)
+    cy = sy[:, None] + n_img // 2
+    cx = sx[None, :] + n_img // 2
+    inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
+    sc = jnp.where(inside, sc, -jnp.inf)
+    pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
+    peak = jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1)
+    val, idx = jax.lax.top_k(peak, k)
+    iy, ix = idx // fw, idx % fw
+    tx = origin[0] + half + sx[ix].astype(jnp.float32) * res
+    ty = origin[1] + half + sy[iy].astype(jnp.float32) * res
+    return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1), val
 
 
 def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
@@ -178,32 +214,19 @@ def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
 
     def one(th):
         R = jnp.asarray([[jnp.cos(th), -jnp.sin(th)], [jnp.sin(th), jnp.cos(th)]])
-        img_p = _splat(pts @ R.T, pok, n_img, res, half)
-        img_f = _splat(frees @ R.T, fok, n_img, res, half)
+        img_p = splat(pts @ R.T, pok, n_img, res, half)
+        img_f = splat(frees @ R.T, fok, n_img, res, half)
         # score[s] = sum_u img[u] field[u + s]; s = -(n-1) .. hc-1, stored modulo fh / fw.
         cor_h = jnp.fft.irfft2(F_hit * jnp.conj(jnp.fft.rfft2(img_p, (fh, fw))), (fh, fw))
         cor_b = jnp.fft.irfft2(F_bad * jnp.conj(jnp.fft.rfft2(img_f, (fh, fw))), (fh, fw))
         sc = cor_h / npts - p.lam * cor_b / nfree
-        # Shifts that move the cloud's centre outside the plan grid are not placements.
-        sy = jnp.where(jnp.arange(fh) < hc, jnp.arange(fh), jnp.arange(fh) - fh)
-        sx = jnp.where(jnp.arange(fw) < wc, jnp.arange(fw), jnp.arange(fw) - fw)
-        cy = sy[:, None] + n_img // 2
-        cx = sx[None, :] + n_img // 2
-        inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
-        sc = jnp.where(inside, sc, -jnp.inf)
-        pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
-        peak = jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1)
-        val, idx = jax.lax.top_k(peak, p.peaks_per_yaw)
-        iy, ix = idx // fw, idx % fw
-        tx = c_origin[0] + half + sx[ix].astype(jnp.float32) * res
-        ty = c_origin[1] + half + sy[iy].astype(jnp.float32) * res
-        return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1), val
+        return map_peaks(sc, th, (hc, wc), n_img, res, c_origin, p.peaks_per_yaw)
 
     poses, vals = jax.lax.map(one, yaws)
     return poses.reshape(-1, 3), vals.reshape(-1)
 
 
-def _polish(g, pts, pok, frees, fok, fields, lam, step_xy, step_yaw, n):
+def polish(g, pts, pok, frees, fok, fields, lam, step_xy, step_yaw, n):
     """Local grid search (``(2n+1)^3`` placements) around ``g``; returns the best."""
     d = jnp.arange(-n, n + 1, dtype=jnp.float32)
     dx, dy, dt = jnp.meshgrid(d * step_xy, d * step_xy, d * step_yaw, indexing="ij")
@@ -213,7 +236,14 @@ def _polish(g, pts, pok, frees, fok, fields, lam, step_xy, step_yaw, n):
     return cand[i], sc[i]
 
 
-def _nms(poses, vals, n, nms_xy, nms_rad):
+def refine_placement(g, pts, pok, frees, fok, fields, lam):
+    """``polish`` twice: 0.12 m / 1.2 deg steps two cells out, then 0.04 m / 0.4 deg one cell
+    out (reaches about 0.3 m and 3 deg from a coarse peak). Returns ``(pose, score)``."""
+    g, _ = polish(g, pts, pok, frees, fok, fields, lam, 0.12, math.radians(1.2), 2)
+    return polish(g, pts, pok, frees, fok, fields, lam, 0.04, math.radians(0.4), 1)
+
+
+def nms(poses, vals, n, nms_xy, nms_rad):
     """Greedy suppression: the ``n`` best placements, pairwise at least (nms_xy or nms_rad)."""
     order = jnp.argsort(-vals)
     poses, vals = poses[order], vals[order]
@@ -247,19 +277,15 @@ def search(pts, pok, frees, fok, fields: PlanFields, p: SearchParams, n_img: int
         (``-inf`` scores where fewer distinct placements exist).
     """
     poses, vals = _coarse(pts, pok, frees, fok, fields, p, n_img)
-    poses, vals = _nms(poses, vals, p.n_peaks, p.nms_xy, math.radians(p.nms_deg))
+    poses, vals = nms(poses, vals, p.n_peaks, p.nms_xy, math.radians(p.nms_deg))
     # polish on an even subsample (the cloud is already in random order)
     sp = max(1, pts.shape[0] // p.polish_points)
     sf = max(1, frees.shape[0] // max(p.polish_points // 2, 1))
     q, qok, f, fok2 = pts[::sp], pok[::sp], frees[::sf], fok[::sf]
 
-    def polish(g):
-        g, _ = _polish(g, q, qok, f, fok2, fields, p.lam, 0.12, math.radians(1.2), 2)
-        return _polish(g, q, qok, f, fok2, fields, p.lam, 0.04, math.radians(0.4), 1)
-
-    poses, sc = jax.vmap(polish)(poses)
+    poses, sc = jax.vmap(lambda g: refine_placement(g, q, qok, f, fok2, fields, p.lam))(poses)
     sc = jnp.where(jnp.isfinite(vals), sc, -jnp.inf)
-    return _nms(poses, sc, p.n_out, 0.5, math.radians(3.0))
+    return nms(poses, sc, p.n_out, 0.5, math.radians(3.0))
 
 
 def uncentre(g, c):

@@ -31,6 +31,13 @@ def add_localize_commands(subparsers) -> None:
     add_input_flags(lo)
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
     lo.add_argument(
+        "--no-scan-match",
+        action="store_true",
+        help="build submaps on the input odometry as it is (default: keyframe poses refined by "
+        "LiDAR scan matching first, which removes wheel-odometry drift; an LIO's odometry "
+        "needs no refinement)",
+    )
+    lo.add_argument(
         "--out",
         type=Path,
         help="decisions JSON lines (written atomically; default decisions.jsonl; with "

@@ -18,9 +18,15 @@ __all__ = ["localize", "localize_one", "localize_many", "follow"]
 
 
 def _params(args):
+    from dataclasses import replace
+
     from mfcl_jax.localizer import LocalizeParams
 
-    return LocalizeParams().with_d_s(args.d_s)
+    p = LocalizeParams().with_d_s(args.d_s)
+    if getattr(args, "no_scan_match", False):
+        sm = replace(p.window.scan_match, enabled=False)
+        p = replace(p, window=replace(p.window, scan_match=sm))
+    return p
 
 
 def _start(progress: Progress) -> None:

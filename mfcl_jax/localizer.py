@@ -23,6 +23,7 @@ from mfcl_jax.decision.rivals import rival_fields
 from mfcl_jax.decision.stream import Decision
 from mfcl_jax.frontend import FrontendParams
 from mfcl_jax.frontend.driver import FrontEnd
+from mfcl_jax.scanmatch import Odometer
 
 __all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize"]
 
@@ -57,12 +58,14 @@ class WindowResult:
         decision: the ``Decision`` at this prefix (``decision.k`` is the 1-based window).
         first, last: indices of the window's first and last scan in the input sequence.
         t: time of the last scan (the decision's time).
-        X: ``(3,)`` odometry pose of the last scan, ``^L T_{S_k}``.
+        X: ``(3,)`` pose of the last scan in the layer's odometry (LiDAR-refined where
+            enabled), ``^L T_{S_k}``.
         n_points: points in the submap after thinning.
         voxel: voxel edge used (m); larger than the configured one when re-thinned.
         n_candidates: valid candidates from the front-end.
         frontend_reason: ``batch.REASONS`` key (0 when candidates exist).
         rethinned: the window was thinned with a coarser voxel to fit the capacity.
+        X_input: ``(3,)`` the input odometry's pose at the same time (default ``X``).
     """
 
     decision: Decision
@@ -75,12 +78,14 @@ class WindowResult:
     n_candidates: int
     frontend_reason: int
     rethinned: bool = False
+    X_input: np.ndarray | None = None
 
     def record(self, offset=(0.0, 0.0)) -> dict:
         """The decisions-file line: the decision with the robot's pose ``T* X_k`` and the
         reason (``status.record``; ``offset``: plan = local + offset)."""
         d = json.loads(self.decision.to_json())
-        return status.record(d, self.X, self.decision.diagnostics.get("reason", ""), offset)
+        reason = self.decision.diagnostics.get("reason", "")
+        return status.record(d, self.X, reason, offset, self.X_input)
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""
@@ -156,7 +161,7 @@ class Localizer:
             wb = W.pack([(seq, one, 0)], capacity=bucket(cap, 256))
             cand = self._fe.register(wb.submaps, wb.building, keep=True)
             m = cand.mask[0]
-            traj = seq.odometry[kf[prev_end + 1 : j1 + 1]]
+            traj = w.odometry[prev_end + 1 : j1 + 1]
             prev_end = int(j1)
             dec = init.update(
                 cand.pose[0][m],
@@ -178,16 +183,19 @@ class Localizer:
                 n_candidates=int(m.sum()),
                 frontend_reason=int(cand.reason[0]),
                 rethinned=bool(W.rethinned(w)[k]),
+                X_input=np.asarray(w.X_input[k]),
             )
 
     def _new_windows(self, prefixes) -> Iterator[tuple]:
         """``(seq, windows, k)`` of every window of the prefixes not seen before (``k``
         indexes ``windows``, which holds only the new windows of ``seq``)."""
         seen = 0
+        # One LiDAR odometer for the recording: each prefix only adds keyframes to it.
+        odometer = Odometer(self.params.window.scan_match)
         for seq in prefixes:
             if self.n_windows(seq) <= seen:
                 continue
-            w = W.cut(seq, self.params.window, start=seen)
+            w = W.cut(seq, self.params.window, start=seen, odometer=odometer)
             for k in range(len(w)):
                 yield seq, w, k
             seen += len(w)

@@ -50,8 +50,9 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     """Pads the windows of many runs into one ``WindowBatch``.
 
     Args:
-        items: ``(seq, windows, building)`` per run: the ``ScanSequence`` (odometry and times of
-            its keyframes fill the run's trajectory), its ``Windows``, its building index.
+        items: ``(seq, windows, building)`` per run: the ``ScanSequence`` (times of its
+            keyframes, with the windows' odometry, fill the run's trajectory), its ``Windows``,
+            its building index.
         capacity: point capacity (default: the bucket of the fullest submap).
         min_capacity: the smallest bucket.
     """
@@ -85,7 +86,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     i = 0
     for r, (seq, w, b) in enumerate(items):
         m = len(w.keyframes)
-        traj[r] = _pad_rows(np.asarray(seq.odometry)[w.keyframes], T)
+        traj[r] = _pad_rows(w.odometry, T)
         traj_t[r, :m] = np.asarray(seq.times)[w.keyframes]
         traj_mask[r, :m] = True
         for k, (pts, org) in enumerate(zip(w.points, w.origins, strict=True)):

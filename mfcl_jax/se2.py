@@ -12,6 +12,7 @@ so with ``Y = ^B T_S`` and ``X = ^L T_S`` the anchor is ``anchor(Y, X) = Y X^-1 
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 
 __all__ = [
     "wrap",
@@ -29,6 +30,8 @@ __all__ = [
     "circular_mean",
     "mean_pose",
     "distance_pair",
+    "compose_host",
+    "inverse_host",
 ]
 
 
@@ -180,3 +183,22 @@ def distance_pair(a, b):
     d = a[..., :2] - b[..., :2]
     dxy = jnp.sqrt(jnp.sum(d * d, axis=-1))
     return dxy, jnp.abs(angle_diff(a[..., 2], b[..., 2]))
+
+
+def compose_host(a, b) -> np.ndarray:
+    """``a b`` for pose rows ``(*, 3)`` in float64 NumPy (the host twin of ``compose``: no
+    compilation per shape, no float32 rounding of large frame offsets)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, np.angle(np.exp(1j * (a[..., 2] + b[..., 2])))], -1)
+
+
+def inverse_host(a) -> np.ndarray:
+    """Group inverse of pose rows ``(*, 3)`` in float64 NumPy (host twin of ``inverse``)."""
+    a = np.asarray(a, np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -(c * a[..., 0] + s * a[..., 1])
+    y = -(-s * a[..., 0] + c * a[..., 1])
+    return np.stack([x, y, np.angle(np.exp(-1j * a[..., 2]))], -1)

@@ -187,11 +187,13 @@ def robot_pose(anchor, X) -> tuple[float, float, float]:
     return ax + c * x - s * y, ay + s * x + c * y, math.atan2(math.sin(t), math.cos(t))
 
 
-def record(decision: dict, X, reason: str, offset=(0.0, 0.0)) -> dict:
+def record(decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None) -> dict:
     """A decisions-file line: ``decision`` (``Decision.to_json``'s keys, anchor in the local
-    frame) with its anchor moved to the plan frame (``offset``: plan = local + offset,
-    ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT) and
-    ``reason``."""
+    frame of the layer's odometry) with its anchor moved to the plan frame (``offset``: plan =
+    local + offset, ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT)
+    and ``reason``. ``X`` is the window's pose in the layer's odometry; ``X_input`` the input
+    odometry's pose at the same time (default ``X``): the anchor written is the one that places
+    the robot at ``pose`` from the input odometry (``windows.to_input_frame``)."""
     d = dict(decision, pose=None, reason=str(reason))
     a = d["anchor"]
     if a is None:
@@ -199,6 +201,13 @@ def record(decision: dict, X, reason: str, offset=(0.0, 0.0)) -> dict:
     ox, oy = (float(v) for v in offset)
     yaw = math.radians(a["yaw_deg"])
     px, py, pyaw = robot_pose((a["x"], a["y"], yaw), X)
+    if X_input is not None:
+        # (T* X_k) X_input^-1: the pose written, reached from the input odometry.
+        xi, yi, yawi = (float(v) for v in X_input)
+        ayaw = pyaw - yawi
+        c, s = math.cos(ayaw), math.sin(ayaw)
+        a = dict(a, x=px - (c * xi - s * yi), y=py - (s * xi + c * yi),
+                 yaw_deg=math.degrees(math.atan2(math.sin(ayaw), math.cos(ayaw))))  # fmt: skip
     # Large plan coordinates: add the offset last, in float64, so millimetres survive.
     d["anchor"] = dict(a, x=float(a["x"]) + ox, y=float(a["y"]) + oy)
     d["pose"] = {"x": float(px) + ox, "y": float(py) + oy, "yaw_deg": math.degrees(pyaw)}

@@ -10,23 +10,29 @@ Every consumer (the study, the benchmark, ``mfcl localize``) goes through here:
    starts at the first keyframe whose travelled distance is at least ``step (k - 1)`` and ends
    at the first keyframe at which the distance travelled inside the window reaches ``d_s``;
    the robot decides this from its own odometry, so drift shifts the windows as on a robot;
-3. the submap (``build_submap``) in the frame ``S_i`` of the window's last scan
-   (``X_i = ^L T_{S_i}``): every scan moved by odometry (drift distorts it as it distorts a
-   real accumulated cloud), cropped, voxel-thinned, each point keeping its ray origin so the
-   ray between them is known free space. A submap over the point capacity is re-thinned with
-   a coarser voxel (x1.5 until it fits, at most ``max_rethin`` times); nothing is truncated;
-4. ``pack`` (``packing``, re-exported here): windows of many runs padded on the host into one
+3. LiDAR odometry (``scanmatch``): the keyframes' poses refined by ICP against a local map of
+   the previous keyframes (``scan_match.enabled``), so that wheel odometry's drift does not bend
+   the submaps; the windows' bounds stay those of the input odometry's travel;
+4. the submap (``build_submap``) in the frame ``S_i`` of the window's last scan
+   (``X_i = ^L T_{S_i}``, the refined pose): every scan moved by its refined pose (what drift
+   is left distorts it as it distorts a real accumulated cloud), cropped, voxel-thinned, each
+   point keeping its ray origin so the ray between them is known free space. A submap over
+   the point capacity is re-thinned with a coarser voxel (x1.5 until it fits, at most
+   ``max_rethin`` times); nothing is truncated;
+5. ``pack`` (``packing``, re-exported here): windows of many runs padded on the host into one
    ``SubmapBatch`` (points in a power-of-two capacity bucket) and one ``RunBatch``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from mfcl_jax import se2
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.packing import WindowBatch, concat, pack
+from mfcl_jax.scanmatch import Odometer, ScanMatchParams
 
 __all__ = [
     "WindowParams",
@@ -43,6 +49,7 @@ __all__ = [
     "rethinned",
     "concat",
     "window",
+    "to_input_frame",
 ]
 
 
@@ -64,6 +71,7 @@ class WindowParams:
         capacity: the largest point capacity of a submap; a window over it is re-thinned.
         min_capacity: the smallest capacity bucket.
         max_rethin: re-thinning rounds (voxel x1.5 each) before an over-full window is an error.
+        scan_match: the LiDAR odometry (``scanmatch.ScanMatchParams``).
     """
 
     d_s: float = 6.0
@@ -75,6 +83,7 @@ class WindowParams:
     capacity: int = 4096
     min_capacity: int = 256
     max_rethin: int = 6
+    scan_match: ScanMatchParams = field(default_factory=ScanMatchParams)
 
     def __post_init__(self):
         for name in ("d_s", "step", "voxel", "keyframe_spacing", "keyframe_turn_deg"):
@@ -221,9 +230,13 @@ class Windows:
         bounds: ``(K, 2)`` inclusive keyframe ranges of the windows.
         points, origins: ``K`` arrays ``(n_k, 2)`` in ``S_k``.
         voxel: ``(K,)`` voxel edge used per window (larger where re-thinned).
-        X: ``(K, 3)`` odometry pose of each window's last scan.
+        X: ``(K, 3)`` pose of each window's last scan in the layer's odometry (refined by the
+            LiDAR odometry where enabled): the ``X_i`` of the anchors ``Y X^-1``.
         t: ``(K,)`` time of each window's last scan.
         params: the ``WindowParams`` used.
+        odometry: ``(M, 3)`` the layer's odometry at every keyframe.
+        X_input: ``(K, 3)`` the input odometry at each window's last scan (an anchor of the
+            layer's frame is reported in the input's with ``to_input_frame``).
     """
 
     keyframes: np.ndarray
@@ -234,6 +247,8 @@ class Windows:
     X: np.ndarray
     t: np.ndarray
     params: WindowParams
+    odometry: np.ndarray
+    X_input: np.ndarray
 
     def __len__(self) -> int:
         return len(self.bounds)
@@ -243,11 +258,11 @@ class Windows:
         return self.keyframes[self.bounds[:, 1]] if len(self.bounds) else np.zeros(0, int)
 
 
-def _thinned(seq, idx, p: WindowParams):
+def _thinned(seq, idx, poses, p: WindowParams):
     scans = [seq.scans[i] for i in idx]
     voxel = p.voxel
     for _ in range(p.max_rethin + 1):
-        pts, org = build_submap(scans, seq.odometry[idx], voxel, p.crop_radius)
+        pts, org = build_submap(scans, poses, voxel, p.crop_radius)
         if len(pts) <= p.capacity:
             return pts, org, voxel
         voxel *= 1.5
@@ -257,34 +272,61 @@ def _thinned(seq, idx, p: WindowParams):
     )
 
 
+def keyframe_odometry(seq, kf, p: WindowParams, odometer: Odometer | None = None):
+    """The layer's odometry ``(M, 3)`` at the keyframes ``kf``: the input's, refined by the
+    LiDAR odometry where ``p.scan_match.enabled``.
+
+    ``odometer``: an ``Odometer`` already fed the first keyframes of this sequence (the live
+    path, which sees ever longer prefixes); it is extended with the rest.
+    """
+    raw = np.asarray(seq.odometry, np.float64)[kf]
+    if not p.scan_match.enabled:
+        return raw
+    odo = odometer if odometer is not None else Odometer(p.scan_match)
+    n = len(odo)
+    if n > len(kf):
+        raise ValueError(f"{seq.source}: odometer fed {n} keyframes, the sequence has {len(kf)}")
+    seg = odometry_segments(raw, np.asarray(seq.times)[kf])
+    return odo.extend([seq.scans[i] for i in kf[n:]], raw[n:], seg[n:])[: len(kf)]
+
+
 def cut(
-    seq, params: WindowParams | None = None, upto: int | None = None, start: int = 0
+    seq,
+    params: WindowParams | None = None,
+    upto: int | None = None,
+    start: int = 0,
+    odometer: Odometer | None = None,
 ) -> Windows:
     """Cuts a ``ScanSequence`` into windows (``upto``: only the first ``upto`` windows;
-    ``start``: leave out the first ``start``, e.g. those a live run has already seen).
+    ``start``: leave out the first ``start``, e.g. those a live run has already seen;
+    ``odometer``: see ``keyframe_odometry``).
 
     Windows are causal: cutting a prefix of a sequence gives the first windows of the whole.
     """
     p = params or WindowParams()
     kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-    bounds = segment_bounds(seq.odometry[kf], np.asarray(seq.times)[kf], p.d_s, p.step)
+    raw = np.asarray(seq.odometry, np.float64)[kf]
+    bounds = segment_bounds(raw, np.asarray(seq.times)[kf], p.d_s, p.step)
     bounds = bounds[start:upto]
+    odo = keyframe_odometry(seq, kf, p, odometer)
     pts, orgs, vox = [], [], []
     for j0, j1 in bounds:
-        a, o, v = _thinned(seq, kf[j0 : j1 + 1], p)
+        a, o, v = _thinned(seq, kf[j0 : j1 + 1], odo[j0 : j1 + 1], p)
         pts.append(a)
         orgs.append(o)
         vox.append(v)
-    last = kf[bounds[:, 1]] if len(bounds) else np.zeros(0, int)
+    last = bounds[:, 1] if len(bounds) else np.zeros(0, int)
     return Windows(
         kf,
         bounds,
         pts,
         orgs,
         np.asarray(vox, np.float64),
-        np.asarray(seq.odometry, np.float64)[last].reshape(-1, 3),
-        np.asarray(seq.times, np.float64)[last],
+        odo[last].reshape(-1, 3),
+        np.asarray(seq.times, np.float64)[kf[last]],
         p,
+        odo,
+        raw[last].reshape(-1, 3),
     )
 
 
@@ -293,8 +335,15 @@ def window(w: Windows, k: int) -> Windows:
     sl = slice(k, k + 1)
     return Windows(
         w.keyframes, w.bounds[sl], w.points[sl], w.origins[sl], w.voxel[sl], w.X[sl], w.t[sl],
-        w.params,
+        w.params, w.odometry, w.X_input[sl],
     )  # fmt: skip
+
+
+def to_input_frame(anchor, X, X_input) -> np.ndarray:
+    """An anchor of the layer's odometry frame, ``(*, 3)``, as the anchor of the input
+    odometry at the same time: ``H X X_input^-1`` (NaN anchors stay NaN). With the LiDAR
+    odometry off, ``X == X_input`` and the anchor is unchanged."""
+    return se2.compose_host(anchor, se2.compose_host(X, se2.inverse_host(X_input)))
 
 
 def rethinned(w: Windows) -> np.ndarray:

@@ -52,10 +52,13 @@ def _fails(argv, capsys, *words):
 
 def test_3d_dataset_localizes_as_its_2d_twin(walk, capsys):
     root, d3, d2 = walk
-    assert main(["localize", str(d3), "--out", str(root / "o3.jsonl")]) == 0
+    # On the input odometry as it is: the band's scans are not the 2-D twin's point for point,
+    # so scan matching would move the two runs' poses apart by millimetres.
+    raw = ["--no-scan-match"]
+    assert main(["localize", str(d3), "--out", str(root / "o3.jsonl"), *raw]) == 0
     err = capsys.readouterr().err
     assert "3-D clouds (median z extent" in err and "z in [0.90, 1.80] m above the floor" in err
-    assert main(["localize", str(d2), "--out", str(root / "o2.jsonl")]) == 0
+    assert main(["localize", str(d2), "--out", str(root / "o2.jsonl"), *raw]) == 0
     assert "3-D clouds" not in capsys.readouterr().err
     a, b = read_decisions(root / "o3.jsonl"), read_decisions(root / "o2.jsonl")
     assert len(a) == len(b) == 5

@@ -9,9 +9,14 @@ import pytest
 
 from mfcl_jax import windows as W
 from mfcl_jax.io import read_decisions, write_decisions
+from mfcl_jax.scanmatch import ScanMatchParams
 from mfcl_jax.score import score_batch, score_decisions
 from mfcl_jax.sources import Recording, ScanSequence
 from mfcl_jax.sources.recording import GroundTruth
+
+# The line sequence's scans move with the sensor (not a rigid world), so the tests of the
+# cutting itself use the input odometry as it is.
+RAW = ScanMatchParams(enabled=False)
 
 
 def _line_sequence(n=120, spacing=0.25, with_nan=False):
@@ -30,7 +35,7 @@ def _line_sequence(n=120, spacing=0.25, with_nan=False):
 
 def test_keyframes_windows_and_cut_are_consistent():
     seq = _line_sequence()
-    w = W.cut(seq, W.WindowParams(d_s=6.0, step=2.0))
+    w = W.cut(seq, W.WindowParams(d_s=6.0, step=2.0, scan_match=RAW))
     # 29.75 m straight: floor((29.75 - 6) / 2) + 1 = 12 windows.
     assert len(w) == 12
     np.testing.assert_array_equal(w.keyframes, np.arange(120))  # 0.25 m > 0.20 m spacing
@@ -88,7 +93,7 @@ def test_the_one_scorer_gives_one_verdict_for_every_consumer(tmp_path):
         [seq.odometry[:, :2] @ R.T + anchor[:2], (seq.odometry[:, 2:] + anchor[2])], 1
     )
     rec = Recording("line", None, seq, GroundTruth(seq.times, true))
-    w = W.cut(seq)
+    w = W.cut(seq, W.WindowParams(scan_match=RAW))
     batch = W.pack([(seq, w, 0)])
     import pandas as pd
 

@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from mfcl_jax import se2
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
@@ -28,14 +29,6 @@ __all__ = [
     "summarize",
     "format_table",
 ]
-
-
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a b`` for pose rows (float64 host twin of ``se2.compose``: no compilation per length)."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    x = a[:, 0] + c * b[:, 0] - s * b[:, 1]
-    y = a[:, 1] + s * b[:, 0] + c * b[:, 1]
-    return np.stack([x, y, np.angle(np.exp(1j * (a[:, 2] + b[:, 2])))], 1)
 
 
 def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
@@ -116,7 +109,7 @@ def score_rows(
     A = df[["x", "y", "yaw_deg"]].to_numpy(np.float64, copy=True)
     A[:, 2] = np.deg2rad(A[:, 2])
     has = np.all(np.isfinite(A), 1)
-    placed = _compose(np.where(has[:, None], A, 0.0), X)
+    placed = se2.compose_host(np.where(has[:, None], A, 0.0), X)
     dxy = np.hypot(placed[:, 0] - Y[:, 0], placed[:, 1] - Y[:, 1])
     dth = np.abs(np.angle(np.exp(1j * (placed[:, 2] - Y[:, 2]))))
     df["err_xy"] = np.where(has, dxy, np.nan)
@@ -144,7 +137,8 @@ def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> p
     """Scores a decision table of a ``WindowBatch`` (``decision.driver.decide``'s frame).
 
     Window ``k`` of run ``r`` is decided at the time of its last scan; every run is scored
-    against its recording's odometry and ground truth by ``score_rows``.
+    against the odometry the layer used (its windows' keyframe odometry) and its recording's
+    ground truth by ``score_rows``.
 
     Args:
         frame: rows with ``run``, ``k`` (1-based), ``x, y, yaw_deg``.
@@ -157,13 +151,13 @@ def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> p
         rec = recordings[int(r)]
         if rec.truth is None:
             raise DataError(f"{rec.name}: no ground truth to score against")
-        g = g.assign(t=batch.windows[int(r)].t[g["k"].to_numpy() - 1])
+        w = batch.windows[int(r)]
+        g = g.assign(t=w.t[g["k"].to_numpy() - 1])
         fp = rec.floorplan if rooms else None
-        parts.append(
-            score_rows(
-                g, rec.seq.times, rec.seq.odometry, rec.truth.times, rec.truth.poses, fp, rec.name
-            )
-        )
+        # The anchors are of the layer's odometry (``Windows.odometry``, LiDAR-refined where
+        # enabled), so that odometry places the robot.
+        kt = np.asarray(rec.seq.times)[w.keyframes]
+        parts.append(score_rows(g, kt, w.odometry, rec.truth.times, rec.truth.poses, fp, rec.name))
     return pd.concat(parts) if parts else frame.iloc[:0]
 
 

@@ -1,0 +1,276 @@
+"""LiDAR odometry: each keyframe's pose refined by ICP against a local map of the last ones.
+
+Submaps are built by stacking a window's scans at their odometry poses, so the odometry's error
+inside a window distorts the submap. Wheel odometry of a real robot turns a few degrees off in
+a few metres (the raw Intel bag: with its ``/odom`` the front-end's best candidate was right in
+14 % of the windows, with the true poses in 78 %). A LiDAR-inertial odometry, which the layer
+assumes, does not; so the windows first re-estimate every keyframe's pose from the scans
+themselves, as kiss-icp does in 3-D:
+
+1. the prediction is the previous refined pose moved by the input odometry's increment;
+2. point-to-point ICP of the keyframe's scan (thinned to ``points``) against the points of the
+   last ``map_scans`` keyframes, each placed at its refined pose: nearest neighbours by brute
+   force inside a ``gate``, Geman-McClure weights of width ``sigma``, Gauss-Newton steps with a
+   prior that ties the pose to the prediction (``prior_xy``, ``prior_yaw_deg``), so a direction
+   the scans cannot fix (along a featureless corridor) follows the input odometry;
+3. a match with fewer than ``min_inliers`` points within ``sigma``, or one that moves the pose
+   farther from the prediction than ``max_shift``/``max_turn_deg``, is not trusted: the pose is
+   the prediction;
+4. an odometry jump (``windows.odometry_segments``) starts over: the keyframe keeps its input
+   pose and the local map is emptied, so the jump stays visible downstream.
+
+The refined odometry starts at the input's first pose and is causal: keyframe ``m`` depends on
+keyframes ``0..m`` only, so a prefix's poses are the whole sequence's first poses. Input is
+scans and odometry only. The kernel is one ``lax.scan`` over a chunk of ``chunk`` keyframes
+(padded and masked), jitted once per parameter set; the host feeds chunks in order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+
+__all__ = ["ScanMatchParams", "Odometer", "scan_match", "thin_scan"]
+
+
+@dataclass(frozen=True)
+class ScanMatchParams:
+    """LiDAR odometry settings.
+
+    Attributes:
+        enabled: refine the odometry (``False``: windows use the input odometry as it is).
+        points: points kept per keyframe scan (static shape).
+        map_scans: keyframes in the local map (static shape).
+        voxel: thinning voxel (m) before the points are subsampled.
+        max_range: returns farther than this (m) are dropped.
+        iters: Gauss-Newton iterations.
+        gate: correspondences farther than this (m) are ignored.
+        sigma: Geman-McClure kernel width (m); also the inlier distance.
+        point_std: per-point residual std (m) against which the prior is weighed.
+        prior_xy, prior_yaw_deg: std of the input odometry's increment error per keyframe.
+        min_inliers: fewest inliers for a match to be trusted.
+        max_shift, max_turn_deg: largest trusted correction of the prediction.
+        chunk: keyframes per kernel call (static shape).
+    """
+
+    enabled: bool = True
+    points: int = 128
+    map_scans: int = 10
+    voxel: float = 0.15
+    max_range: float = 20.0
+    iters: int = 8
+    gate: float = 0.6
+    sigma: float = 0.10
+    point_std: float = 0.05
+    prior_xy: float = 0.05
+    prior_yaw_deg: float = 2.0
+    min_inliers: int = 24
+    max_shift: float = 0.5
+    max_turn_deg: float = 10.0
+    chunk: int = 32
+
+    def __post_init__(self):
+        for name in ("points", "map_scans", "iters", "chunk", "min_inliers"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v > 0):
+                raise ValueError(f"ScanMatchParams: {name} must be a positive int, got {v!r}")
+        for name in ("voxel", "max_range", "gate", "sigma", "point_std", "prior_xy",
+                     "prior_yaw_deg", "max_shift", "max_turn_deg"):  # fmt: skip
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and v > 0):
+                raise ValueError(f"ScanMatchParams: {name} must be > 0, got {name}={v!r}")
+
+
+def thin_scan(scan, p: ScanMatchParams) -> tuple[np.ndarray, np.ndarray]:
+    """One scan ``(n, 2)`` (sensor frame, NaN allowed) as ``(points (P, 2), mask (P,))``:
+    finite returns within ``max_range``, one per ``voxel``, evenly subsampled to ``P``."""
+    s = np.asarray(scan, np.float64).reshape(-1, 2)
+    r2 = np.einsum("ij,ij->i", s, s)
+    s = s[np.all(np.isfinite(s), axis=1) & (r2 <= p.max_range**2) & (r2 > 1e-4)]
+    if len(s):
+        cell = np.floor(s / p.voxel).astype(np.int64)
+        _, first = np.unique(cell, axis=0, return_index=True)
+        s = s[np.sort(first)]
+    if len(s) > p.points:
+        s = s[np.linspace(0, len(s) - 1, p.points).round().astype(int)]
+    out = np.zeros((p.points, 2), np.float32)
+    mask = np.zeros(p.points, bool)
+    out[: len(s)], mask[: len(s)] = s, True
+    return out, mask
+
+
+def _icp(pred, scan, smask, mpts, mmask, th):
+    """Refines ``pred (3,)`` so that ``scan (P, 2)`` fits the map ``mpts (Q, 2)``.
+
+    Returns ``(pose (3,), inliers ())``."""
+    big = jnp.asarray(1e6, mpts.dtype)
+    mp = jnp.where(mmask[:, None], mpts, big)
+    m2 = jnp.sum(mp * mp, 1)
+    info_prior = jnp.stack([1 / th["prior_xy"] ** 2] * 2 + [1 / th["prior_yaw"] ** 2])
+    w_pt = 1 / th["point_std"] ** 2
+
+    def nearest(pose):
+        q = se2.apply(pose, scan)  # (P, 2)
+        # |q - m|^2 as a matrix product: the (P, Q) table is the kernel's whole cost.
+        d2 = jnp.sum(q * q, 1)[:, None] + m2[None, :] - 2 * q @ mp.T  # (P, Q)
+        j = jnp.argmin(d2, axis=1)
+        m = mp[j]
+        return q, m, jnp.sum((q - m) ** 2, axis=1)
+
+    def body(_, pose):
+        q, m, d2 = nearest(pose)
+        s2 = th["sigma"] ** 2
+        w = jnp.where(smask & (d2 < th["gate"] ** 2), (s2 / (s2 + d2)) ** 2, 0.0) * w_pt
+        r = q - m  # (P, 2)
+        lever = q - pose[:2]
+        # d q / d (tx, ty, dtheta), the rotation taken about the sensor origin.
+        jx = jnp.stack([jnp.ones_like(w), jnp.zeros_like(w), -lever[:, 1]], -1)
+        jy = jnp.stack([jnp.zeros_like(w), jnp.ones_like(w), lever[:, 0]], -1)
+        H = jnp.einsum("p,pi,pj->ij", w, jx, jx) + jnp.einsum("p,pi,pj->ij", w, jy, jy)
+        g = jnp.einsum("p,pi,p->i", w, jx, r[:, 0]) + jnp.einsum("p,pi,p->i", w, jy, r[:, 1])
+        e = jnp.concatenate([pose[:2] - pred[:2], se2.angle_diff(pose[2:], pred[2:])])
+        H = H + jnp.diag(info_prior)
+        g = g + info_prior * e
+        delta = -jnp.linalg.solve(H, g)
+        return jnp.concatenate([pose[:2] + delta[:2], se2.wrap(pose[2:] + delta[2:])])
+
+    pose = jax.lax.fori_loop(0, th["iters"], body, pred)
+    _, _, d2 = nearest(pose)
+    inliers = jnp.sum(smask & (d2 < th["sigma"] ** 2))
+    return pose, inliers
+
+
+def _step(th, carry, inp):
+    prev, prev_odo, mpts, mmask, slot = carry
+    scan, smask, odo, valid, reset = inp
+    pred = se2.compose(prev, se2.between(prev_odo, odo))
+    K, P = mmask.shape
+    pose, inl = _icp(pred, scan, smask, mpts.reshape(K * P, 2), mmask.reshape(K * P), th)
+    shift = jnp.hypot(*(pose[:2] - pred[:2]))
+    turn = jnp.abs(se2.angle_diff(pose[2], pred[2]))
+    trusted = (
+        (inl >= th["min_inliers"])
+        & (jnp.sum(mmask) >= th["min_inliers"])
+        & (shift <= th["max_shift"])
+        & (turn <= th["max_turn"])
+        & jnp.all(jnp.isfinite(pose))
+    )
+    pose = jnp.where(trusted, pose, pred)
+    pose = jnp.where(reset, odo, pose)
+    mmask = jnp.where(reset, False, mmask)
+    new_pts = mpts.at[slot].set(se2.apply(pose, scan))
+    new_mask = mmask.at[slot].set(smask)
+    out = (
+        jnp.where(valid, pose, prev),
+        jnp.where(valid, odo, prev_odo),
+        jnp.where(valid, new_pts, mpts),
+        jnp.where(valid, new_mask, mmask),
+        jnp.where(valid, (slot + 1) % K, slot),
+    )
+    return out, (pose, trusted)
+
+
+@partial(jax.jit, static_argnames=())
+def _chunk(th, carry, scans, smask, odo, valid, reset):
+    """``lax.scan`` of ``_step`` over one chunk of keyframes."""
+    return jax.lax.scan(partial(_step, th), carry, (scans, smask, odo, valid, reset))
+
+
+def _thresholds(p: ScanMatchParams) -> dict:
+    f = np.float32
+    return dict(
+        iters=np.int32(p.iters),
+        gate=f(p.gate),
+        sigma=f(p.sigma),
+        point_std=f(p.point_std),
+        prior_xy=f(p.prior_xy),
+        prior_yaw=f(np.deg2rad(p.prior_yaw_deg)),
+        min_inliers=np.int32(p.min_inliers),
+        max_shift=f(p.max_shift),
+        max_turn=f(np.deg2rad(p.max_turn_deg)),
+    )
+
+
+class Odometer:
+    """Refines a growing sequence of keyframes chunk by chunk (the kernel's state is kept).
+
+    ``extend`` takes keyframes in order; the result for the first ``m`` keyframes never
+    changes when more arrive, so the live path and the batch path agree.
+
+    Args:
+        params: ``ScanMatchParams``.
+    """
+
+    def __init__(self, params: ScanMatchParams | None = None):
+        self.params = params or ScanMatchParams()
+        self._th = _thresholds(self.params)
+        p = self.params
+        self._carry = (
+            np.zeros(3, np.float32),
+            np.zeros(3, np.float32),
+            np.zeros((p.map_scans, p.points, 2), np.float32),
+            np.zeros((p.map_scans, p.points), bool),
+            np.int32(0),
+        )
+        self._pending: list = []  # keyframes not yet run: (scan, mask, odo, reset)
+        self.poses = np.zeros((0, 3), np.float64)
+        self.trusted = np.zeros(0, bool)
+        self._n = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def extend(self, scans, odometry, segments) -> np.ndarray:
+        """Adds keyframes; returns the refined poses ``(M, 3)`` of all keyframes so far.
+
+        Args:
+            scans: the new keyframes' scans, ``(n_i, 2)`` each, sensor frame.
+            odometry: ``(m, 3)`` their input odometry poses.
+            segments: ``(m,)`` their odometry segment ids (``windows.odometry_segments`` of
+                the whole keyframe sequence): a change of id starts over.
+        """
+        odometry = np.asarray(odometry, np.float64).reshape(-1, 3)
+        segments = np.asarray(segments).reshape(-1)
+        p = self.params
+        if not p.enabled:
+            self.poses = np.concatenate([self.poses, odometry])
+            self.trusted = np.concatenate([self.trusted, np.zeros(len(odometry), bool)])
+            self._n += len(odometry)
+            return self.poses
+        n0 = self._n
+        out_p, out_t = [], []
+        for i0 in range(0, len(odometry), p.chunk):
+            sl = slice(i0, min(i0 + p.chunk, len(odometry)))
+            m = sl.stop - sl.start
+            S = np.zeros((p.chunk, p.points, 2), np.float32)
+            M = np.zeros((p.chunk, p.points), bool)
+            for j, s in enumerate(scans[sl]):
+                S[j], M[j] = thin_scan(s, p)
+            O = np.zeros((p.chunk, 3), np.float32)
+            O[:m] = odometry[sl]
+            valid = np.arange(p.chunk) < m
+            seg = segments[sl]
+            prev_seg = self._last_seg if n0 + sl.start > 0 else None
+            starts = np.concatenate([[prev_seg != seg[0]], seg[1:] != seg[:-1]])
+            reset = np.zeros(p.chunk, bool)
+            reset[:m] = starts
+            self._carry, (pose, trusted) = _chunk(self._th, self._carry, S, M, O, valid, reset)
+            out_p.append(np.asarray(pose, np.float64)[:m])
+            out_t.append(np.asarray(trusted)[:m] & ~starts)
+            self._last_seg = seg[-1]
+        if out_p:
+            self.poses = np.concatenate([self.poses, *out_p])
+            self.trusted = np.concatenate([self.trusted, *out_t])
+        self._n += len(odometry)
+        return self.poses
+
+
+def scan_match(scans, odometry, segments, params: ScanMatchParams | None = None) -> np.ndarray:
+    """Refined poses ``(M, 3)`` of keyframes (``Odometer`` run once over all of them)."""
+    return Odometer(params).extend(scans, odometry, segments)

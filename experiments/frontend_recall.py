@@ -1,6 +1,8 @@
-"""Front-end recall on the benchmark's nominal windows, corners alone and with the dense
-hypotheses: ``python -m experiments.frontend_recall [out_dir] [family ...]`` (logic in
-``mfcl_jax.bench.recall``; about 5 min on 2 cores)."""
+"""Front-end recall on the benchmark's nominal windows: corners alone, the full front-end on
+the input odometry, and the default (with the LiDAR odometry).
+
+``python -m experiments.frontend_recall [out_dir] [family ...]`` (logic in
+``mfcl_jax.bench.recall``; about 8 min on 2 cores)."""
 
 import sys
 

@@ -53,6 +53,8 @@ class ScanMatchParams:
         gate: correspondences farther than this (m) are ignored.
         sigma: Geman-McClure kernel width (m); also the inlier distance.
         point_std: per-point residual std (m) against which the prior is weighed.
+        point_weight: share of the point-to-point residual next to the point-to-line one.
+        normal_radius: neighbourhood (m) of a map point's normal.
         prior_xy, prior_yaw_deg: std of the input odometry's increment error per keyframe.
         min_inliers: fewest inliers for a match to be trusted.
         max_shift, max_turn_deg: largest trusted correction of the prediction.
@@ -66,8 +68,10 @@ class ScanMatchParams:
     max_range: float = 20.0
     iters: int = 8
     gate: float = 0.6
-    sigma: float = 0.10
+    sigma: float = 0.20
     point_std: float = 0.05
+    point_weight: float = 0.1
+    normal_radius: float = 0.5
     prior_xy: float = 0.05
     prior_yaw_deg: float = 2.0
     min_inliers: int = 24
@@ -80,7 +84,8 @@ class ScanMatchParams:
             v = getattr(self, name)
             if not (isinstance(v, int) and v > 0):
                 raise ValueError(f"ScanMatchParams: {name} must be a positive int, got {v!r}")
-        for name in ("voxel", "max_range", "gate", "sigma", "point_std", "prior_xy",
+        for name in ("voxel", "max_range", "gate", "sigma", "point_std", "point_weight",
+                     "normal_radius", "prior_xy",
                      "prior_yaw_deg", "max_shift", "max_turn_deg"):  # fmt: skip
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v > 0):
@@ -105,8 +110,29 @@ def thin_scan(scan, p: ScanMatchParams) -> tuple[np.ndarray, np.ndarray]:
     return out, mask
 
 
-def _icp(pred, scan, smask, mpts, mmask, th):
-    """Refines ``pred (3,)`` so that ``scan (P, 2)`` fits the map ``mpts (Q, 2)``.
+def _normals(scan, smask, radius):
+    """Unit normals ``(P, 2)`` of a scan's points from the points within ``radius`` (the
+    principal axis of their scatter); zero where fewer than 3 points or no line shape."""
+    d2 = jnp.sum((scan[:, None, :] - scan[None, :, :]) ** 2, axis=-1)
+    a = (smask[:, None] & smask[None, :] & (d2 < radius**2)).astype(scan.dtype)
+    n = jnp.sum(a, 1)
+    mu = (a @ scan) / jnp.maximum(n, 1.0)[:, None]
+    dx = scan[None, :, :] - mu[:, None, :]  # (P, P, 2)
+    c = jnp.einsum("ij,ijk,ijl->ikl", a, dx, dx) / jnp.maximum(n, 1.0)[:, None, None]
+    cxx, cxy, cyy = c[:, 0, 0], c[:, 0, 1], c[:, 1, 1]
+    theta = 0.5 * jnp.arctan2(2 * cxy, cxx - cyy)  # the line's direction
+    half = 0.5 * (cxx + cyy)
+    disc = jnp.sqrt(jnp.maximum(half**2 - (cxx * cyy - cxy**2), 0.0))
+    line = (half - disc) <= 0.1 * (half + disc)
+    ok = smask & (n >= 3) & line
+    nrm = jnp.stack([-jnp.sin(theta), jnp.cos(theta)], -1)
+    return jnp.where(ok[:, None], nrm, 0.0)
+
+
+def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
+    """Refines ``pred (3,)`` so that ``scan (P, 2)`` fits the map ``mpts (Q, 2)`` (normals
+    ``mnrm (Q, 2)``, zero where none): point-to-line residuals, plus a small point-to-point
+    share (``point_weight``) that holds points without a normal and the sliding directions.
 
     Returns ``(pose (3,), inliers ())``."""
     big = jnp.asarray(1e6, mpts.dtype)
@@ -121,10 +147,10 @@ def _icp(pred, scan, smask, mpts, mmask, th):
         d2 = jnp.sum(q * q, 1)[:, None] + m2[None, :] - 2 * q @ mp.T  # (P, Q)
         j = jnp.argmin(d2, axis=1)
         m = mp[j]
-        return q, m, jnp.sum((q - m) ** 2, axis=1)
+        return q, m, mnrm[j], jnp.sum((q - m) ** 2, axis=1)
 
     def body(_, pose):
-        q, m, d2 = nearest(pose)
+        q, m, nn, d2 = nearest(pose)
         s2 = th["sigma"] ** 2
         w = jnp.where(smask & (d2 < th["gate"] ** 2), (s2 / (s2 + d2)) ** 2, 0.0) * w_pt
         r = q - m  # (P, 2)
@@ -132,8 +158,19 @@ def _icp(pred, scan, smask, mpts, mmask, th):
         # d q / d (tx, ty, dtheta), the rotation taken about the sensor origin.
         jx = jnp.stack([jnp.ones_like(w), jnp.zeros_like(w), -lever[:, 1]], -1)
         jy = jnp.stack([jnp.zeros_like(w), jnp.ones_like(w), lever[:, 0]], -1)
-        H = jnp.einsum("p,pi,pj->ij", w, jx, jx) + jnp.einsum("p,pi,pj->ij", w, jy, jy)
-        g = jnp.einsum("p,pi,p->i", w, jx, r[:, 0]) + jnp.einsum("p,pi,p->i", w, jy, r[:, 1])
+        jl = nn[:, :1] * jx + nn[:, 1:] * jy  # (P, 3) of the residual along the normal
+        rl = jnp.sum(nn * r, 1)
+        wp = w * th["point_weight"]
+        H = (
+            jnp.einsum("p,pi,pj->ij", w, jl, jl)
+            + jnp.einsum("p,pi,pj->ij", wp, jx, jx)
+            + jnp.einsum("p,pi,pj->ij", wp, jy, jy)
+        )
+        g = (
+            jnp.einsum("p,pi,p->i", w, jl, rl)
+            + jnp.einsum("p,pi,p->i", wp, jx, r[:, 0])
+            + jnp.einsum("p,pi,p->i", wp, jy, r[:, 1])
+        )
         e = jnp.concatenate([pose[:2] - pred[:2], se2.angle_diff(pose[2:], pred[2:])])
         H = H + jnp.diag(info_prior)
         g = g + info_prior * e
@@ -141,17 +178,18 @@ def _icp(pred, scan, smask, mpts, mmask, th):
         return jnp.concatenate([pose[:2] + delta[:2], se2.wrap(pose[2:] + delta[2:])])
 
     pose = jax.lax.fori_loop(0, th["iters"], body, pred)
-    _, _, d2 = nearest(pose)
+    _, _, _, d2 = nearest(pose)
     inliers = jnp.sum(smask & (d2 < th["sigma"] ** 2))
     return pose, inliers
 
 
 def _step(th, carry, inp):
-    prev, prev_odo, mpts, mmask, slot = carry
+    prev, prev_odo, mpts, mnrm, mmask, slot = carry
     scan, smask, odo, valid, reset = inp
     pred = se2.compose(prev, se2.between(prev_odo, odo))
     K, P = mmask.shape
-    pose, inl = _icp(pred, scan, smask, mpts.reshape(K * P, 2), mmask.reshape(K * P), th)
+    flat = (mpts.reshape(K * P, 2), mnrm.reshape(K * P, 2), mmask.reshape(K * P))
+    pose, inl = _icp(pred, scan, smask, *flat, th)
     shift = jnp.hypot(*(pose[:2] - pred[:2]))
     turn = jnp.abs(se2.angle_diff(pose[2], pred[2]))
     trusted = (
@@ -165,11 +203,13 @@ def _step(th, carry, inp):
     pose = jnp.where(reset, odo, pose)
     mmask = jnp.where(reset, False, mmask)
     new_pts = mpts.at[slot].set(se2.apply(pose, scan))
+    new_nrm = mnrm.at[slot].set(se2.rotate(pose[2], _normals(scan, smask, th["normal_radius"])))
     new_mask = mmask.at[slot].set(smask)
     out = (
         jnp.where(valid, pose, prev),
         jnp.where(valid, odo, prev_odo),
         jnp.where(valid, new_pts, mpts),
+        jnp.where(valid, new_nrm, mnrm),
         jnp.where(valid, new_mask, mmask),
         jnp.where(valid, (slot + 1) % K, slot),
     )
@@ -189,6 +229,8 @@ def _thresholds(p: ScanMatchParams) -> dict:
         gate=f(p.gate),
         sigma=f(p.sigma),
         point_std=f(p.point_std),
+        point_weight=f(p.point_weight),
+        normal_radius=f(p.normal_radius),
         prior_xy=f(p.prior_xy),
         prior_yaw=f(np.deg2rad(p.prior_yaw_deg)),
         min_inliers=np.int32(p.min_inliers),
@@ -215,6 +257,7 @@ class Odometer:
             np.zeros(3, np.float32),
             np.zeros(3, np.float32),
             np.zeros((p.map_scans, p.points, 2), np.float32),
+            np.zeros((p.map_scans, p.points, 2), np.float32),
             np.zeros((p.map_scans, p.points), bool),
             np.int32(0),
         )
@@ -222,6 +265,7 @@ class Odometer:
         self.poses = np.zeros((0, 3), np.float64)
         self.trusted = np.zeros(0, bool)
         self._n = 0
+        self._origin = None  # the kernel works in float32 around the first keyframe's position
 
     def __len__(self) -> int:
         return self._n
@@ -244,6 +288,9 @@ class Odometer:
             self._n += len(odometry)
             return self.poses
         n0 = self._n
+        if self._origin is None and len(odometry):
+            self._origin = np.array([*odometry[0, :2], 0.0])
+        local = odometry - self._origin if len(odometry) else odometry
         out_p, out_t = [], []
         for i0 in range(0, len(odometry), p.chunk):
             sl = slice(i0, min(i0 + p.chunk, len(odometry)))
@@ -253,7 +300,7 @@ class Odometer:
             for j, s in enumerate(scans[sl]):
                 S[j], M[j] = thin_scan(s, p)
             O = np.zeros((p.chunk, 3), np.float32)
-            O[:m] = odometry[sl]
+            O[:m] = local[sl]
             valid = np.arange(p.chunk) < m
             seg = segments[sl]
             prev_seg = self._last_seg if n0 + sl.start > 0 else None
@@ -261,7 +308,7 @@ class Odometer:
             reset = np.zeros(p.chunk, bool)
             reset[:m] = starts
             self._carry, (pose, trusted) = _chunk(self._th, self._carry, S, M, O, valid, reset)
-            out_p.append(np.asarray(pose, np.float64)[:m])
+            out_p.append(np.asarray(pose, np.float64)[:m] + self._origin)
             out_t.append(np.asarray(trusted)[:m] & ~starts)
             self._last_seg = seg[-1]
         if out_p:

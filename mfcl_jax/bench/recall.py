@@ -4,8 +4,10 @@ For every window of every nominal run (the benchmark's families, seeds and walks
 the front-end's candidates are compared with the true pose of the window's frame (ground
 truth used here only, to score): ``top1`` is the share of windows whose best-scored candidate
 is within 1 m and 5 deg of it, ``any`` the share with some candidate there, ``none`` the
-share with no candidate at all. Each front-end variant in ``VARIANTS`` registers the same
-windows, so the columns compare hypothesis sources on identical evidence.
+share with no candidate at all. Each variant in ``VARIANTS`` registers the same windows (the
+same scans, the same window bounds): ``corners only`` without the dense hypotheses,
+``input odometry`` with the submaps built on the input odometry as it is (no LiDAR
+odometry), ``default`` the front-end and windows as the layer runs them.
 
 ``python -m experiments.frontend_recall`` writes ``results/frontend_recall.{csv,md}``.
 """
@@ -23,14 +25,16 @@ from mfcl_jax.bench import suite
 from mfcl_jax.bench.config import BenchmarkConfig, validate
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.frontend.registry import FrontendParams
+from mfcl_jax.scanmatch import ScanMatchParams
 from mfcl_jax.score import CORRECT_XY, CORRECT_YAW_DEG, pose_at
 
 __all__ = ["VARIANTS", "window_hits", "recall_table", "main"]
 
-# name: FrontendParams overrides
+# name: (FrontendParams overrides, LiDAR odometry on)
 VARIANTS = {
-    "corners": dict(dense_n=0),
-    "corners+dense": {},
+    "corners only": (dict(dense_n=0), True),
+    "input odometry": ({}, False),
+    "default": ({}, True),
 }
 
 
@@ -62,18 +66,22 @@ def main(out: str = "results", families=None) -> pd.DataFrame:
     cfg = validate(cfg)
     t0 = time.perf_counter()
     recs = suite.nominal_recordings(cfg)
-    wp = W.WindowParams(d_s=cfg.d_s)
-    plans, items = {}, []
+    plans = {}
     for r in recs:
-        b = plans.setdefault(id(r.floorplan), (len(plans), r.floorplan))[0]
-        items.append((r.seq, W.cut(r.seq, wp), b))
-    wb = W.pack(items, capacity=wp.capacity)
+        plans.setdefault(id(r.floorplan), (len(plans), r.floorplan))
     fps = [fp for _, fp in sorted(plans.values(), key=lambda t: t[0])]
+    batches = {}
+    for matched in sorted({m for _, m in VARIANTS.values()}):
+        wp = W.WindowParams(d_s=cfg.d_s, scan_match=ScanMatchParams(enabled=matched))
+        items = [(r.seq, W.cut(r.seq, wp), plans[id(r.floorplan)][0]) for r in recs]
+        batches[matched] = W.pack(items, capacity=wp.capacity)
+    wb = batches[True]
     print(f"[recall] {len(recs)} runs, {wb.submaps.n} windows ({time.perf_counter() - t0:.0f} s)")
     truth = [pose_at(r.truth.times, r.truth.poses, w.t) for r, w in zip(recs, wb.windows,
                                                                          strict=True)]  # fmt: skip
     rows = []
-    for name, kw in VARIANTS.items():
+    for name, (kw, matched) in VARIANTS.items():
+        wb = batches[matched]
         fe = FrontEnd(fps, FrontendParams(**kw), multiple=256)
         cands = fe.register(wb.submaps, wb.building)
         ms = 1000 * fe.run_s / max(wb.submaps.n, 1)

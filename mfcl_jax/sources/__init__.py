@@ -8,7 +8,6 @@ from mfcl_jax.sources.sequence import (
     from_bag,
     from_carmen,
     from_dataset,
-    keyframes,
 )
 
 __all__ = [
@@ -21,5 +20,4 @@ __all__ = [
     "from_bag",
     "from_carmen",
     "from_dataset",
-    "keyframes",
 ]

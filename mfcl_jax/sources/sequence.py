@@ -1,10 +1,7 @@
 """Scan sequences: what the localizer consumes (times, sensor-frame scans, odometry in L).
 
-A ``ScanSequence`` comes from a dataset folder, a ROS bag or a CARMEN log. ``keyframes`` thins
-it the way an LIO keeps keyframes: a scan is kept once the odometry has moved far enough or
-turned far enough since the last kept one. The threshold (0.20 m) sits below the simulator's
-0.25 m scan spacing, so a simulated dataset keeps every scan despite its 0.5 % drift and its
-windows are exactly the simulator's.
+A ``ScanSequence`` comes from a dataset folder, a ROS bag or a CARMEN log; ``windows.cut``
+thins it to keyframes (``windows.keyframes``) and cuts it into submaps.
 """
 
 from __future__ import annotations
@@ -15,7 +12,7 @@ import numpy as np
 
 from mfcl_jax.io.errors import DataError
 
-__all__ = ["ScanSequence", "keyframes", "from_dataset", "from_bag", "from_carmen"]
+__all__ = ["ScanSequence", "from_dataset", "from_bag", "from_carmen"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,28 +58,6 @@ class ScanSequence:
         return ScanSequence(
             self.times[idx], [self.scans[i] for i in idx], self.odometry[idx], self.source
         )
-
-
-def keyframes(odometry, spacing: float = 0.20, turn_deg: float = 20.0) -> np.ndarray:
-    """Indices of the scans kept as keyframes (the first scan is always kept).
-
-    Args:
-        odometry: ``(N, 3)`` poses in L.
-        spacing: keep a scan once the odometry moved this far (m) from the last kept one.
-        turn_deg: ... or turned this far (deg).
-
-    Returns:
-        ``(M,)`` increasing indices.
-    """
-    x = np.asarray(odometry, np.float64)
-    keep = [0]
-    turn = np.deg2rad(turn_deg)
-    for i in range(1, len(x)):
-        a = x[keep[-1]]
-        dyaw = abs((x[i, 2] - a[2] + np.pi) % (2 * np.pi) - np.pi)
-        if np.hypot(*(x[i, :2] - a[:2])) >= spacing or dyaw >= turn:
-            keep.append(i)
-    return np.asarray(keep, int)
 
 
 def from_dataset(ds) -> ScanSequence:

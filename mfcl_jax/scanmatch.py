@@ -55,6 +55,8 @@ class ScanMatchParams:
         point_std: per-point residual std (m) against which the prior is weighed.
         point_weight: share of the point-to-point residual next to the point-to-line one.
         normal_radius: neighbourhood (m) of a map point's normal.
+        degenerate: a translation direction whose information from the points is below this
+            share of the points' total weight is left to the prior (degeneracy-aware ICP).
         prior_xy, prior_yaw_deg: std of the input odometry's increment error per keyframe.
         min_inliers: fewest inliers for a match to be trusted.
         max_shift, max_turn_deg: largest trusted correction of the prediction.
@@ -70,7 +72,8 @@ class ScanMatchParams:
     gate: float = 0.6
     sigma: float = 0.20
     point_std: float = 0.05
-    point_weight: float = 0.1
+    point_weight: float = 0.01
+    degenerate: float = 0.05
     normal_radius: float = 0.5
     prior_xy: float = 0.05
     prior_yaw_deg: float = 2.0
@@ -85,7 +88,7 @@ class ScanMatchParams:
             if not (isinstance(v, int) and v > 0):
                 raise ValueError(f"ScanMatchParams: {name} must be a positive int, got {v!r}")
         for name in ("voxel", "max_range", "gate", "sigma", "point_std", "point_weight",
-                     "normal_radius", "prior_xy",
+                     "normal_radius", "degenerate", "prior_xy",
                      "prior_yaw_deg", "max_shift", "max_turn_deg"):  # fmt: skip
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v > 0):
@@ -171,6 +174,14 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
             + jnp.einsum("p,pi,p->i", wp, jx, r[:, 0])
             + jnp.einsum("p,pi,p->i", wp, jy, r[:, 1])
         )
+        # Translations the scans barely constrain (along a bare corridor: the few normals that
+        # are not square to the walls) are left to the prior, i.e. to the input odometry's
+        # increment; otherwise those few points would drag the pose along the corridor.
+        lam, vec = jnp.linalg.eigh(H[:2, :2])
+        keep = lam > th["degenerate"] * jnp.maximum(jnp.sum(w), 1e-9)
+        proj = jnp.eye(3, dtype=H.dtype).at[:2, :2].set((vec * keep[None, :]) @ vec.T)
+        H = proj @ H @ proj
+        g = proj @ g
         e = jnp.concatenate([pose[:2] - pred[:2], se2.angle_diff(pose[2:], pred[2:])])
         H = H + jnp.diag(info_prior)
         g = g + info_prior * e
@@ -231,6 +242,7 @@ def _thresholds(p: ScanMatchParams) -> dict:
         point_std=f(p.point_std),
         point_weight=f(p.point_weight),
         normal_radius=f(p.normal_radius),
+        degenerate=f(p.degenerate),
         prior_xy=f(p.prior_xy),
         prior_yaw=f(np.deg2rad(p.prior_yaw_deg)),
         min_inliers=np.int32(p.min_inliers),

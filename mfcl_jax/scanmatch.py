@@ -179,7 +179,7 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
         # increment; otherwise those few points would drag the pose along the corridor.
         lam, vec = jnp.linalg.eigh(H[:2, :2])
         keep = lam > th["degenerate"] * jnp.maximum(jnp.sum(w), 1e-9)
-        proj = jnp.eye(3, dtype=H.dtype).at[:2, :2].set((vec * keep[None, :]) @ vec.T)
+        proj = jnp.eye(3, dtype=H.dtype).at[:2, :2].set((vec * keep.astype(H.dtype)) @ vec.T)
         H = proj @ H @ proj
         g = proj @ g
         e = jnp.concatenate([pose[:2] - pred[:2], se2.angle_diff(pose[2:], pred[2:])])

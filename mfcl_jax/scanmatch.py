@@ -57,6 +57,8 @@ class ScanMatchParams:
         normal_radius: neighbourhood (m) of a map point's normal.
         degenerate: a translation direction whose information from the points is below this
             share of the points' total weight is left to the prior (degeneracy-aware ICP).
+        min_gain: the match replaces the prediction only when it lowers the scan's mean
+            squared misfit by more than ``min_gain`` squared (m).
         prior_xy, prior_yaw_deg: std of the input odometry's increment error per keyframe.
         min_inliers: fewest inliers for a match to be trusted.
         max_shift, max_turn_deg: largest trusted correction of the prediction.
@@ -74,6 +76,7 @@ class ScanMatchParams:
     point_std: float = 0.05
     point_weight: float = 0.01
     degenerate: float = 0.05
+    min_gain: float = 0.02
     normal_radius: float = 0.5
     prior_xy: float = 0.05
     prior_yaw_deg: float = 2.0
@@ -88,7 +91,7 @@ class ScanMatchParams:
             if not (isinstance(v, int) and v > 0):
                 raise ValueError(f"ScanMatchParams: {name} must be a positive int, got {v!r}")
         for name in ("voxel", "max_range", "gate", "sigma", "point_std", "point_weight",
-                     "normal_radius", "degenerate", "prior_xy",
+                     "normal_radius", "degenerate", "min_gain", "prior_xy",
                      "prior_yaw_deg", "max_shift", "max_turn_deg"):  # fmt: skip
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v > 0):
@@ -188,10 +191,23 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
         delta = -jnp.linalg.solve(H, g)
         return jnp.concatenate([pose[:2] + delta[:2], se2.wrap(pose[2:] + delta[2:])])
 
+    def misfit(pose):
+        """Mean squared distance along the normals (point distance where none), capped at
+        the gate: how badly the scan at ``pose`` fits the map."""
+        q, m, nn, d2 = nearest(pose)
+        has = jnp.sum(nn * nn, 1) > 0
+        r2 = jnp.where(has, jnp.sum(nn * (q - m), 1) ** 2, d2)
+        r2 = jnp.minimum(r2, th["gate"] ** 2)
+        return jnp.sum(jnp.where(smask, r2, 0.0)) / jnp.maximum(jnp.sum(smask), 1), d2
+
     pose = jax.lax.fori_loop(0, th["iters"], body, pred)
-    _, _, _, d2 = nearest(pose)
+    after, d2 = misfit(pose)
+    before, _ = misfit(pred)
     inliers = jnp.sum(smask & (d2 < th["sigma"] ** 2))
-    return pose, inliers
+    # The input's increment stands unless the scans clearly fit better elsewhere: a good
+    # odometry (an LIO's) is then kept as it is, not replaced by the matcher's own noise.
+    better = before - after > th["min_gain"] ** 2
+    return jnp.where(better, pose, pred), inliers
 
 
 def _step(th, carry, inp):
@@ -243,6 +259,7 @@ def _thresholds(p: ScanMatchParams) -> dict:
         point_weight=f(p.point_weight),
         normal_radius=f(p.normal_radius),
         degenerate=f(p.degenerate),
+        min_gain=f(p.min_gain),
         prior_xy=f(p.prior_xy),
         prior_yaw=f(np.deg2rad(p.prior_yaw_deg)),
         min_inliers=np.int32(p.min_inliers),

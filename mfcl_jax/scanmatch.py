@@ -198,7 +198,8 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
         has = jnp.sum(nn * nn, 1) > 0
         r2 = jnp.where(has, jnp.sum(nn * (q - m), 1) ** 2, d2)
         r2 = jnp.minimum(r2, th["gate"] ** 2)
-        return jnp.sum(jnp.where(smask, r2, 0.0)) / jnp.maximum(jnp.sum(smask), 1), d2
+        n = jnp.maximum(jnp.sum(smask).astype(r2.dtype), 1.0)
+        return jnp.sum(jnp.where(smask, r2, 0.0)) / n, d2
 
     pose = jax.lax.fori_loop(0, th["iters"], body, pred)
     after, d2 = misfit(pose)

@@ -20,7 +20,6 @@ Run: ``nice python -m benchmarks.lidar3d [--no-office] [--out results/lidar3d]``
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -101,7 +100,7 @@ def _inputs(w, sensor):
 def _localize(loc: Localizer, fp, w, scans, case: dict) -> dict:
     seq = ScanSequence(w.t, scans, w.odom, f"{case['building']}/{case['walk']}/{case['input']}")
     t0 = time.perf_counter()
-    decs = [json.loads(r.decision.to_json()) for r in loc.run(seq)]
+    decs = [r.record() for r in loc.run(seq)]  # anchors against the input odometry
     dt = time.perf_counter() - t0
     s = summarize(score_decisions(decs, w.t, w.odom, w.t, w.true, fp, where=seq.source))
     states = "".join({"COMMIT": "C", "DEFER": "d", "AMBIGUOUS": "a"}[d["state"]] for d in decs)

@@ -17,7 +17,6 @@ Cases (all with the same, untuned ``LocalizeParams``; d_s = 6 m):
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -138,7 +137,7 @@ class Case:
 def _run(loc: Localizer, case: Case, fp, out: Path) -> dict:
     t0 = time.perf_counter()
     results = list(loc.run(case.seq))
-    decs = [json.loads(r.decision.to_json()) for r in results]
+    decs = [r.record() for r in results]  # anchors against the input odometry
     from mfcl_jax.io import write_decisions
 
     write_decisions(out / "decisions" / f"{case.group}__{case.name}.jsonl", decs)

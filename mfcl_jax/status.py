@@ -193,7 +193,7 @@ def record(decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None) -> d
     local + offset, ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT)
     and ``reason``. ``X`` is the window's pose in the layer's odometry; ``X_input`` the input
     odometry's pose at the same time (default ``X``): the anchor written is the one that places
-    the robot at ``pose`` from the input odometry (``windows.to_input_frame``)."""
+    the robot at ``pose`` from the input odometry, ``(T* X) X_input^-1``."""
     d = dict(decision, pose=None, reason=str(reason))
     a = d["anchor"]
     if a is None:

@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mfcl_jax import se2
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.packing import WindowBatch, concat, pack
 from mfcl_jax.scanmatch import Odometer, ScanMatchParams
@@ -49,7 +48,6 @@ __all__ = [
     "rethinned",
     "concat",
     "window",
-    "to_input_frame",
 ]
 
 
@@ -236,7 +234,7 @@ class Windows:
         params: the ``WindowParams`` used.
         odometry: ``(M, 3)`` the layer's odometry at every keyframe.
         X_input: ``(K, 3)`` the input odometry at each window's last scan (an anchor of the
-            layer's frame is reported in the input's with ``to_input_frame``).
+            layer's frame is reported in the input's by ``status.record``).
     """
 
     keyframes: np.ndarray
@@ -337,13 +335,6 @@ def window(w: Windows, k: int) -> Windows:
         w.keyframes, w.bounds[sl], w.points[sl], w.origins[sl], w.voxel[sl], w.X[sl], w.t[sl],
         w.params, w.odometry, w.X_input[sl],
     )  # fmt: skip
-
-
-def to_input_frame(anchor, X, X_input) -> np.ndarray:
-    """An anchor of the layer's odometry frame, ``(*, 3)``, as the anchor of the input
-    odometry at the same time: ``H X X_input^-1`` (NaN anchors stay NaN). With the LiDAR
-    odometry off, ``X == X_input`` and the anchor is unchanged."""
-    return se2.compose_host(anchor, se2.compose_host(X, se2.inverse_host(X_input)))
 
 
 def rethinned(w: Windows) -> np.ndarray:

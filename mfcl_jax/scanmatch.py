@@ -244,7 +244,7 @@ def _step(th, carry, inp):
     return out, (pose, trusted)
 
 
-@partial(jax.jit, static_argnames=())
+@jax.jit
 def _chunk(th, carry, scans, smask, odo, valid, reset):
     """``lax.scan`` of ``_step`` over one chunk of keyframes."""
     return jax.lax.scan(partial(_step, th), carry, (scans, smask, odo, valid, reset))
@@ -273,7 +273,9 @@ class Odometer:
     """Refines a growing sequence of keyframes chunk by chunk (the kernel's state is kept).
 
     ``extend`` takes keyframes in order; the result for the first ``m`` keyframes never
-    changes when more arrive, so the live path and the batch path agree.
+    changes when more arrive, so the live path and the batch path agree. ``poses`` holds the
+    refined poses so far; ``trusted`` whether each keyframe's match passed the inlier and
+    correction checks (such a match may still keep the prediction under ``min_gain``).
 
     Args:
         params: ``ScanMatchParams``.
@@ -291,14 +293,13 @@ class Odometer:
             np.zeros((p.map_scans, p.points), bool),
             np.int32(0),
         )
-        self._pending: list = []  # keyframes not yet run: (scan, mask, odo, reset)
         self.poses = np.zeros((0, 3), np.float64)
         self.trusted = np.zeros(0, bool)
-        self._n = 0
+        self._last_seg = None  # segment id of the last keyframe run
         self._origin = None  # the kernel works in float32 around the first keyframe's position
 
     def __len__(self) -> int:
-        return self._n
+        return len(self.poses)
 
     def extend(self, scans, odometry, segments) -> np.ndarray:
         """Adds keyframes; returns the refined poses ``(M, 3)`` of all keyframes so far.
@@ -315,9 +316,7 @@ class Odometer:
         if not p.enabled:
             self.poses = np.concatenate([self.poses, odometry])
             self.trusted = np.concatenate([self.trusted, np.zeros(len(odometry), bool)])
-            self._n += len(odometry)
             return self.poses
-        n0 = self._n
         if self._origin is None and len(odometry):
             self._origin = np.array([*odometry[0, :2], 0.0])
         local = odometry - self._origin if len(odometry) else odometry
@@ -333,8 +332,7 @@ class Odometer:
             O[:m] = local[sl]
             valid = np.arange(p.chunk) < m
             seg = segments[sl]
-            prev_seg = self._last_seg if n0 + sl.start > 0 else None
-            starts = np.concatenate([[prev_seg != seg[0]], seg[1:] != seg[:-1]])
+            starts = np.concatenate([[self._last_seg != seg[0]], seg[1:] != seg[:-1]])
             reset = np.zeros(p.chunk, bool)
             reset[:m] = starts
             self._carry, (pose, trusted) = _chunk(self._th, self._carry, S, M, O, valid, reset)
@@ -344,7 +342,6 @@ class Odometer:
         if out_p:
             self.poses = np.concatenate([self.poses, *out_p])
             self.trusted = np.concatenate([self.trusted, *out_t])
-        self._n += len(odometry)
         return self.poses
 
 

@@ -95,6 +95,12 @@ jax.tree_util.register_dataclass(
 )
 
 
+# Prefixes certified together: the certification scores every window of a prefix under every
+# explanation at 13 fitted poses (``certify.REFINE``); all prefixes at once would hold tens of
+# GB for a run of 48 windows, four at a time a few hundred MB.
+CERT_BATCH = 4
+
+
 def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int = 3) -> Decisions:
     """Every decision of one run.
 
@@ -125,9 +131,13 @@ def evaluate_run(r: RunInputs, maps, params, var: policies.Variants, n_cap: int 
 
     cores = jax.vmap(cores_at)(jnp.arange(kk))  # (K, 2 modes, ...)
     on = jax.tree.map(lambda x: x[:, 0], cores)
-    certs = jax.vmap(
-        lambda k, c: certify_core(k, c, r.H, r.score, r.X, evidence, bounds, maps, p0, rivals)
-    )(jnp.arange(kk), on)  # (K, ...): only the gated variants certify
+    certs = jax.lax.map(
+        lambda kc: certify_core(
+            kc[0], kc[1], r.H, r.score, r.X, evidence, bounds, maps, p0, rivals
+        ),
+        (jnp.arange(kk), on),
+        batch_size=CERT_BATCH,
+    )  # (K, ...): only the gated variants certify
 
     def ours_prefix(p, c2, cert):
         def one(ug, up, uc, bm, dm):

@@ -19,7 +19,6 @@ from tests.test_decision_layer import (
     A,
     J,
     K,
-    assert_same,
     evaluate_runs,
     ours,
     probe_cands,
@@ -113,6 +112,13 @@ def test_c2_immunity_under_drift():
             run["score"][k, j0 : j0 + n] = top * rng.uniform(0.0, 0.999, n)
             run["mask"][k, j0 : j0 + n] = True
         out = evaluate_runs([run])
-        assert_same(RECENT, out)
+        # States, kinds, counts and anchors are unchanged. The period reported with an
+        # AMBIGUOUS translation is that of the strongest live competitor; fitted to the
+        # windows (certify.REFINE), a flood candidate near the alias can be that competitor,
+        # so the reported period may move by a fraction of the grouping tolerance.
+        for f in FIELDS:
+            np.testing.assert_array_equal(getattr(out, f)[..., :5], getattr(RECENT, f)[..., :5])
+        np.testing.assert_allclose(out.anchor[..., :5, :], RECENT.anchor[..., :5, :], atol=1e-4)
+        np.testing.assert_allclose(out.tau[..., :5, :], RECENT.tau[..., :5, :], atol=0.3)
         for f in FIELDS:
             np.testing.assert_array_equal(getattr(out, f)[..., OURS], getattr(RECENT, f)[..., OURS])

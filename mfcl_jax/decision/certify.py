@@ -52,8 +52,8 @@ from mfcl_jax.frontend import verify
 __all__ = ["CertStats", "chain", "competitors", "certify", "relation", "CORRECT"]
 
 CORRECT = (1.0, math.radians(5.0))  # same answer: the robot placed within 1 m and 5 deg
-# Every explanation is scored at its best fit to each window: two rounds of a pattern search
-# (6 cm / 0.6 deg, then 2 cm / 0.2 deg; see the module docstring).
+# Every explanation is scored at its best fit to each window: two rounds of one step either way
+# along x, y and the heading (6 cm / 0.6 deg, then 2 cm / 0.2 deg; see the module docstring).
 REFINE = ((0.06, math.radians(0.6)), (0.02, math.radians(0.2)))
 FREE_PER_RAY = 4  # free-space samples per ray (a ray through a plan wall is penalised)
 

@@ -78,16 +78,23 @@ def _decide(run, maps, rivals=None, found_at=NO_RIVAL, params=None):
     return jax.tree.map(lambda x: np.asarray(x)[0, :, 0, OURS], out)
 
 
-def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
-    """Four identical rooms in a row, walked in the first two only, with the congruence
-    check off (no probe alias): every window's candidate is the truth and the layer commits.
-    The one-room shift of the path is as good an explanation while the walk sees neither end
-    of the row; given as a rival found at prefix k, it blocks the commit from k on
-    (AMBIGUOUS translation, period = the room pitch), not before."""
+def _row_walk():
+    """Four identical rooms in a row (no congruence probe), walked to and fro along y = 2.5
+    in the first two: ``(maps, run)``."""
     fp = row_of_rooms()
     maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4))
     run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
                    fp=fp)  # fmt: skip
+    return maps, run
+
+
+def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
+    """Four identical rooms in a row, walked in the first two only, with the congruence
+    check off (no probe alias): every window's candidate is the truth and the layer commits.
+    The one-room shift of the path is nearly as good an explanation (the row's end is seen
+    only through the aligned doors); given as a rival found at prefix k, it blocks the commit
+    from k on (AMBIGUOUS translation, period = the room pitch), not before."""
+    maps, run = _row_walk()
     # Not quite "neither end": along y = 2.5 the robot sees the row's end wall through the
     # aligned doors, and the certification finds the shift 0.03-0.06 worse in every window
     # (at the default margin 0.05 it is ruled out: see the next test). The subject
@@ -118,10 +125,7 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     margin once rays carry free-space samples."""
     from mfcl_jax.decision import certify
 
-    fp = row_of_rooms()
-    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4))
-    run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
-                   fp=fp)  # fmt: skip
+    maps, run = _row_walk()
     X = jnp.asarray(run["X"])
     ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]
     off = se2.compose(A, np.array([0.04, -0.03, np.deg2rad(0.4)]))
@@ -130,7 +134,8 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     poses = se2.compose(anchors[None], X[:, None])
 
     def adv(steps, n_free):
-        s = certify._window_scores(poses, *ev, maps, 0.07, 1.0, n_free, steps)
+        s = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0, n_free,
+                                   steps)  # fmt: skip
         return np.asarray(s[:, :1] - s[:, 1:])  # (windows, 2)
 
     m = DecisionParams().cert_margin

@@ -88,6 +88,13 @@ REASON_TEXT = {
         "The layer had committed, but the tracked placement now puts the travelled path "
         "through walls or out of the building: the commit is withdrawn (DEFER).",
     ),
+    "commit stale": (
+        "the newest scans place the robot off the committed pose",
+        "The layer had committed, but the newest window's best registration puts the robot "
+        "at the same place yet farther than the tracking tolerance (0.5 m or 3 deg) from "
+        "where the commit does: the odometry drifted faster than the commit could follow, "
+        "so the commit is withdrawn (DEFER) and the next windows decide afresh.",
+    ),
     "competitor not ruled out": (
         "another placement fits the scans as well",
         "The best placement is decisive by consensus, but re-scoring the windows' scans "

@@ -109,20 +109,51 @@ def test_the_newest_window_candidate_tracks_a_held_anchor_without_champions():
 
 def test_noisy_registrations_do_not_walk_a_commit_off():
     """A hall pins one direction only: every window's candidates scatter along the other
-    (sd 0.6 m) with scores that say nothing. The tracked anchor must stay within the 1 m of a
-    correct answer over 60 windows; taking the best nearby candidate outright each window
-    wandered past 1 m in about a third of these walks."""
+    (sd 0.25 m) with scores that say nothing. While COMMIT is reported the tracked anchor must
+    stay within the 1 m of a correct answer; the commit may end only as ``commit stale``, in a
+    window whose best registration is beyond the tracking tolerance (0.5 m). The price of that
+    rule shows here: with this scatter a commit is held a median of about 12 windows (at
+    sd 0.6 m, 1-4), then the next windows decide afresh."""
     k, j = 60, 8
-    worst = []
+    worst, held = [], []
     for seed in range(20):
         rng = np.random.default_rng(seed)
         H = np.broadcast_to(A, (k, j, 3)).copy()
-        H[:, :, 1] += rng.normal(0.0, 0.6, (k, j))
+        H[:, :, 1] += rng.normal(0.0, 0.25, (k, j))
         score = rng.uniform(0.5, 1.0, (k, j))
         raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
         h, s = jnp.asarray(H, jnp.float32), jnp.asarray(score, jnp.float32)
         ok = jnp.ones((k, j), bool)
         out = machine.track(raw, h, s, ok, jnp.zeros((k, 3)), P, jnp.bool_(True))
-        assert np.all(np.asarray(out.state) == COMMIT)
-        worst.append(np.max(np.abs(np.asarray(out.anchor)[:, 1] - A[1])))
+        state, anchor = np.asarray(out.state), np.asarray(out.anchor)
+        n = int(np.argmin(state == COMMIT)) if (state != COMMIT).any() else k
+        held.append(n)
+        worst.append(np.max(np.abs(anchor[:n, 1] - A[1])))
+        if n < k:  # left: stale, the best registration of that window beyond 0.5 m
+            assert REASONS[int(out.reason[n])] == "commit stale"
+            top = H[n, np.argmax(score[n])]
+            assert abs(top[1] - anchor[n - 1, 1]) > machine.TRACK[0]
     assert max(worst) < 1.0, worst
+    assert np.median(held) >= 6, held  # commits hold for windows: the tracking is exercised
+
+
+def test_a_commit_the_newest_registration_leaves_behind_is_stale():
+    """The odometry turns the true anchor faster than the half-way tracking follows (the raw
+    Intel bag: 1.5-2 deg a window): once the newest window's best registration places the
+    robot farther than 3 deg from the held anchor, at the same place, the commit ends
+    (``DEFER``, ``commit stale``) instead of being reported wrong."""
+    k = 5
+    turn = [A + [0.0, 0.0, np.deg2rad(a)] for a in (0.0, 1.0, 2.0, 6.0, 6.5)]
+    raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
+    H = jnp.asarray(np.stack(turn)[:, None, :], jnp.float32)
+    x = jnp.asarray(np.tile([3.0, 1.0, 0.2], (k, 1)), jnp.float32)
+    out = machine.track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), x, P, jnp.bool_(True))
+    out = jax.tree.map(np.asarray, out)
+    assert list(out.state[:3]) == [COMMIT] * 3
+    assert out.state[3] == DEFER and REASONS[int(out.reason[3])] == "commit stale"
+    assert out.state[4] == DEFER  # the machine starts over; the per-prefix rule says DEFER
+    # a registration elsewhere (an alias 7 m away) is not staleness: the commit holds
+    far = np.stack(turn[:3] + [FAR, FAR])
+    out = machine.track(raw, jnp.asarray(far[:, None, :], jnp.float32), jnp.ones((k, 1)),
+                        jnp.ones((k, 1), bool), x, P, jnp.bool_(True))  # fmt: skip
+    assert list(np.asarray(out.state)) == [COMMIT] * k

@@ -25,9 +25,14 @@ A robot cannot act on that, so the reported state is a small machine over the pr
   has become decisive: the per-prefix decision commits to it) or ``commit infeasible`` (the
   trajectory mapped by the tracked anchor, this prefix's ``T*``, now fails the feasibility
   gate: the path walks through walls or out of the building; a held anchor that is no
-  longer tracked is judged by the first rule). The state then becomes AMBIGUOUS
-  (multimodal) resp. DEFER for that window, and the machine starts over from the next
-  window (a new commit needs the per-prefix rules again).
+  longer tracked is judged by the first rule) or ``commit stale`` (the newest window's best
+  registration places the robot at the commit's place, within the grouping tolerances, but
+  farther than ``TRACK`` from where the held anchor does: the odometry has drifted faster
+  than the tracking follows, and the held pose is no longer what the scans say; measured on
+  the raw Intel bag, whose LiDAR odometry turned the true anchor by 1.5-2 deg a window: the
+  tracked commit lagged and was 6.7 deg off four windows after a right commit). The state
+  then becomes AMBIGUOUS (multimodal) resp. DEFER for that window, and the machine starts
+  over from the next window (a new commit needs the per-prefix rules again).
 
 ``step`` is shared by the batch evaluator (``lax.scan`` over the prefixes) and the streaming
 initializer (one step per window), so both report the same states.
@@ -47,7 +52,7 @@ from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, Decisions
 
 __all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "initial", "step", "track"]
 
-CONTRADICTED, INFEASIBLE = 9, 10  # keys of state.REASONS
+CONTRADICTED, INFEASIBLE, STALE = 9, 10, 13  # keys of state.REASONS
 TRACK = (0.5, math.radians(3.0))  # a newest candidate this close to the held anchor tracks it
 
 
@@ -77,6 +82,16 @@ def _newest(held_anchor, newest):
     return H[j], jnp.any(close)
 
 
+def _stale(held_anchor, newest, p):
+    """The newest window's best registration places the robot at the held commit's place
+    (within the grouping tolerances) but farther than ``TRACK`` from where the commit does."""
+    H, score, mask, x = newest
+    j = jnp.argmax(jnp.where(mask, score, -jnp.inf))
+    dxy, dth = se2.distance_pair(se2.compose(H[j], x), se2.compose(held_anchor, x))
+    same = (dxy <= p.delta_xy) & (dth <= p.delta_theta)
+    return jnp.any(mask) & same & ((dxy > TRACK[0]) | (dth > TRACK[1]))
+
+
 def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisions]:
     """One window.
 
@@ -102,7 +117,9 @@ def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisio
     # The tracked anchor is this prefix's T*, whose gate consistency the decision already has.
     infeasible = held.committed & near & use_gate & (raw.c_winner < p.tau_c)
     contradicted = held.committed & ~infeasible & (raw.state == COMMIT) & ~near
-    keep = held.committed & ~infeasible & ~contradicted
+    stale = held.committed & ~infeasible & ~contradicted & _stale(held.anchor, newest, p)
+    keep = held.committed & ~infeasible & ~contradicted & ~stale
+    infeasible = infeasible | stale
     state = jnp.where(
         keep, COMMIT, jnp.where(infeasible, DEFER, jnp.where(contradicted, AMBIGUOUS, raw.state))
     ).astype(raw.state.dtype)
@@ -111,7 +128,7 @@ def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisio
     ).astype(raw.kind.dtype)
     reason = jnp.where(
         infeasible,
-        INFEASIBLE,
+        jnp.where(stale, STALE, INFEASIBLE),
         jnp.where(contradicted, CONTRADICTED, jnp.where(keep, 0, raw.reason)),
     ).astype(raw.reason.dtype)
     anchor = jnp.where(keep, tracked, raw.anchor)

@@ -86,6 +86,7 @@ REASONS = {
     10: "commit infeasible",
     11: "competitor not ruled out",
     12: "winner contradicted",
+    13: "commit stale",
 }
 
 

@@ -50,7 +50,7 @@ from mfcl_jax import se2
 from mfcl_jax.decision import lattice
 from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, Decisions
 
-__all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "initial", "step", "track"]
+__all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "STALE", "initial", "step", "track"]
 
 CONTRADICTED, INFEASIBLE, STALE = 9, 10, 13  # keys of state.REASONS
 TRACK = (0.5, math.radians(3.0))  # a newest candidate this close to the held anchor tracks it
@@ -119,15 +119,15 @@ def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisio
     contradicted = held.committed & ~infeasible & (raw.state == COMMIT) & ~near
     stale = held.committed & ~infeasible & ~contradicted & _stale(held.anchor, newest, p)
     keep = held.committed & ~infeasible & ~contradicted & ~stale
-    infeasible = infeasible | stale
+    deferred = infeasible | stale  # both leave the commit as DEFER
     state = jnp.where(
-        keep, COMMIT, jnp.where(infeasible, DEFER, jnp.where(contradicted, AMBIGUOUS, raw.state))
+        keep, COMMIT, jnp.where(deferred, DEFER, jnp.where(contradicted, AMBIGUOUS, raw.state))
     ).astype(raw.state.dtype)
     kind = jnp.where(
-        keep | infeasible, lattice.KIND_NONE, jnp.where(contradicted, lattice.MULTIMODAL, raw.kind)
+        keep | deferred, lattice.KIND_NONE, jnp.where(contradicted, lattice.MULTIMODAL, raw.kind)
     ).astype(raw.kind.dtype)
     reason = jnp.where(
-        infeasible,
+        deferred,
         jnp.where(stale, STALE, INFEASIBLE),
         jnp.where(contradicted, CONTRADICTED, jnp.where(keep, 0, raw.reason)),
     ).astype(raw.reason.dtype)

@@ -83,9 +83,14 @@ class WindowResult:
     def record(self, offset=(0.0, 0.0)) -> dict:
         """The decisions-file line: the decision with the robot's pose ``T* X_k`` and the
         reason (``status.record``; ``offset``: plan = local + offset)."""
-        d = json.loads(self.decision.to_json())
-        reason = self.decision.diagnostics.get("reason", "")
-        return status.record(d, self.X, reason, offset, self.X_input)
+        dec = self.decision
+        d = json.loads(dec.to_json())
+        reason = dec.diagnostics.get("reason", "")
+        alternatives = None
+        if dec.state == "AMBIGUOUS":
+            rival = dec.diagnostics.get("competitor")
+            alternatives = [dec.anchor] + ([] if rival is None else [rival])
+        return status.record(d, self.X, reason, offset, self.X_input, alternatives)
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""

@@ -30,7 +30,9 @@ STATE_TEXT = {
     "copy of it stays possible; the line gives the robot's current pose in the plan frame.",
     "AMBIGUOUS": "the scans match the building, but more than one place fits them equally "
     "(a repeated layout with period tau, a rotational or mirror symmetry, or several separate "
-    "places: multimodal); walk on towards something that tells the places apart.",
+    "places: multimodal); where a competing placement is known, the line gives the robot's "
+    "pose under the best placement and under it ('robot at (x, y, heading) or (...)'); walk "
+    "on towards something that tells the places apart.",
     "DEFER": "not enough evidence yet; the reason says what is missing. Keep moving.",
 }
 
@@ -178,8 +180,10 @@ def markdown() -> str:
         "",
         "The decisions file (`--out`, JSON lines) holds the same per line: `k, t, state, "
         "anchor, symmetry, tau, B1, B2, margin` as before, plus `pose` (`{x, y, yaw_deg}` "
-        'of the robot in the plan frame when COMMIT, else `null`) and `reason` (`""` when '
-        "none).",
+        'of the robot in the plan frame when COMMIT, else `null`), `reason` (`""` when '
+        "none) and `alternatives` (when AMBIGUOUS: a list of the robot's poses `{x, y, "
+        "yaw_deg}` in the plan frame, one per explanation the layer could not tell apart, "
+        "the best placement first, then the strongest competitor; `null` for other states).",
     ]
     return "\n".join(out) + "\n"
 
@@ -194,18 +198,32 @@ def robot_pose(anchor, X) -> tuple[float, float, float]:
     return ax + c * x - s * y, ay + s * x + c * y, math.atan2(math.sin(t), math.cos(t))
 
 
-def record(decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None) -> dict:
+def record(
+    decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None, alternatives=None
+) -> dict:
     """A decisions-file line: ``decision`` (``Decision.to_json``'s keys, anchor in the local
     frame of the layer's odometry) with its anchor moved to the plan frame (``offset``: plan =
-    local + offset, ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT)
-    and ``reason``. ``X`` is the window's pose in the layer's odometry; ``X_input`` the input
-    odometry's pose at the same time (default ``X``): the anchor written is the one that places
-    the robot at ``pose`` from the input odometry, ``(T* X) X_input^-1``."""
-    d = dict(decision, pose=None, reason=str(reason))
+    local + offset, ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT),
+    ``reason`` and ``alternatives``. ``X`` is the window's pose in the layer's odometry;
+    ``X_input`` the input odometry's pose at the same time (default ``X``): the anchor written
+    is the one that places the robot at ``pose`` from the input odometry, ``(T* X) X_input^-1``.
+
+    ``alternatives``: for an AMBIGUOUS decision, the anchors ``(x, y, yaw)`` (local frame,
+    radians) of the explanations the layer could not tell apart, best first (``T*``, then the
+    strongest competitor); written as the robot's pose under each, ``A X_k`` in the plan frame.
+    None (written as null) for other states.
+    """
+    ox, oy = (float(v) for v in offset)
+    alt = None
+    if alternatives is not None:
+        alt = []
+        for a in alternatives:
+            px, py, pyaw = robot_pose(a, X)
+            alt.append({"x": px + ox, "y": py + oy, "yaw_deg": math.degrees(pyaw)})
+    d = dict(decision, pose=None, reason=str(reason), alternatives=alt)
     a = d["anchor"]
     if a is None:
         return d
-    ox, oy = (float(v) for v in offset)
     yaw = math.radians(a["yaw_deg"])
     px, py, pyaw = robot_pose((a["x"], a["y"], yaw), X)
     if X_input is not None:
@@ -221,6 +239,17 @@ def record(decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None) -> d
     return d
 
 
+def _places(d: dict) -> str:
+    """``"; robot at (x, y, h) or (x, y, h)"``: where the explanations an AMBIGUOUS record
+    lists place the robot (empty when it lists fewer than two)."""
+    alt = d.get("alternatives") or []
+    if len(alt) < 2:
+        return ""
+    return "; robot at " + " or ".join(
+        f"({a['x']:.2f}, {a['y']:.2f}, {a['yaw_deg']:.0f} deg)" for a in alt
+    )
+
+
 def status_line(d: dict, detail: str = "") -> str:
     """One line for a person from a decisions-file record (``record``'s keys)."""
     head = f"k={d['k']:3d} t={d['t']:10.2f} {d['state']:9s}"
@@ -230,8 +259,9 @@ def status_line(d: dict, detail: str = "") -> str:
     elif d["symmetry"] == "translation" and d["tau"] is not None:
         tx, ty = d["tau"]
         what = f"repeated layout: position known up to multiples of tau=({tx:.2f}, {ty:.2f}) m"
+        what += _places(d)
     elif d["symmetry"] in _KINDS:
-        what = _KINDS[d["symmetry"]]
+        what = _KINDS[d["symmetry"]] + _places(d)
     elif d.get("reason"):
         short = REASON_TEXT.get(d["reason"], (d["reason"],))[0]
         what = f"{d['reason']} ({short})"

@@ -78,7 +78,35 @@ def test_record_gives_the_robot_pose_in_the_plan_frame():
     assert d["pose"]["y"] == pytest.approx(5000003.0, abs=1e-9)
     assert d["pose"]["yaw_deg"] == pytest.approx(120.0)
     assert d["anchor"] == {"x": 500020.0, "y": 5000002.0, "yaw_deg": 90.0}
-    assert status.record(dict(OLD), X, "unsaturated") == dict(OLD, pose=None, reason="unsaturated")
+    assert status.record(dict(OLD), X, "unsaturated") == dict(
+        OLD, pose=None, reason="unsaturated", alternatives=None
+    )
+
+
+def test_an_ambiguous_record_lists_where_each_explanation_puts_the_robot():
+    X = (1.0, 2.0, math.radians(30.0))
+    amb = dict(OLD, state="AMBIGUOUS", symmetry="rotation", B1=4, B2=2, margin=2)
+    best, rival = (20.0, 2.0, math.radians(90.0)), (-3.0, 0.0, math.radians(-90.0))
+    d = status.record(amb, X, "competitor not ruled out", (100.0, 0.0), alternatives=[best, rival])
+    assert d["anchor"] is None and d["pose"] is None
+    (p, q) = d["alternatives"]
+    # robot pose under each anchor, A X_k, then + offset: (18, 3, 120 deg) and (-1, -1, -60 deg)
+    assert (p["x"], p["y"], p["yaw_deg"]) == pytest.approx((118.0, 3.0, 120.0))
+    assert (q["x"], q["y"], q["yaw_deg"]) == pytest.approx((99.0, -1.0, -60.0))
+    line = status.status_line(d)
+    assert "robot at (118.00, 3.00, 120 deg) or (99.00, -1.00, -60 deg)" in line, line
+    assert read_decisions_line(d) == d
+    # a file line lists alternatives only with AMBIGUOUS, each a full pose
+    with pytest.raises(DataError, match="only an AMBIGUOUS decision lists them"):
+        decision_line(dict(OLD, pose=None, reason="", alternatives=[p]))
+    with pytest.raises(DataError, match=r"alternatives\[1\]=\{'x': 1.0\}, expected"):
+        decision_line(dict(d, alternatives=[p, {"x": 1.0}]))
+    with pytest.raises(DataError, match="expected a non-empty list or null"):
+        decision_line(dict(d, alternatives=[]))
+
+
+def read_decisions_line(d):
+    return json.loads(decision_line(d))
 
 
 @given(
@@ -96,13 +124,13 @@ def test_robot_pose_is_the_group_product(a, x):
 
 # ------------------------------------------------------------------ the decisions file
 def test_decisions_with_pose_and_reason_round_trip(tmp_path):
-    rows = [dict(OLD, pose=None, reason="unsaturated"),
+    rows = [dict(OLD, pose=None, reason="unsaturated", alternatives=None),
             status.record(_commit(), (0.0, 0.0, 0.0), "")]  # fmt: skip
     path = write_decisions(tmp_path / "d.jsonl", rows)
     assert read_decisions(path) == rows
     keys = list(json.loads(path.read_text().splitlines()[1]))
     assert keys[:9] == ["k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin"]
-    assert keys[9:] == ["pose", "reason"]
+    assert keys[9:] == ["pose", "reason", "alternatives"]
     old = tmp_path / "old.jsonl"  # a file written before pose and reason existed
     old.write_text(json.dumps(OLD) + "\n")
     assert read_decisions(old) == [OLD]

@@ -93,6 +93,10 @@ def test_lattice_ambiguous_then_commit_when_aliases_become_infeasible():
     assert amb, states
     for k in amb:
         assert abs(np.linalg.norm(d.tau[k]) - PITCH) < 2.5
+        # the listed competitor is the tied group a period away from T*
+        assert d.has_competitor[k]
+        gap = np.asarray(d.competitor[k][:2]) - np.asarray(d.anchor[k][:2])
+        assert abs(np.linalg.norm(gap) - PITCH) < 2.5, (k, gap)
     assert states[-1] == 2  # the walk spans the whole row: every shifted anchor leaves the plan
     dxy, dth = se2.distance_pair(d.anchor[-1], A)
     assert float(dxy) < 0.05 and float(dth) < 1e-3
@@ -114,6 +118,12 @@ def test_probe_blocks_commit_while_alias_is_feasible():
     held = [k for k in range(K) if d.state[k] == 1 and d.kind[k] == 1]
     assert held and all(REASONS[int(d.reason[k])] == "competitor not ruled out" for k in held)
     assert all(abs(float(d.tau[k][0]) - PITCH) < 0.3 for k in held)
+    # the competing explanation is listed: the +pitch image of T*, the one not ruled out
+    for k in held:
+        assert d.has_competitor[k]
+        g = se2.compose(d.competitor[k], se2.inverse(d.anchor[k]))
+        assert abs(float(g[0]) - PITCH) < 0.3 and abs(float(g[1])) < 0.3, (k, g)
+    assert not d.has_competitor[-1]  # a COMMIT lists none
     assert d.state[-1] == 2 and paper.state[-1] == 2
     first = lambda s: int(np.argmax(np.asarray(s) == 2))  # noqa: E731
     assert first(d.state) <= first(paper.state)

@@ -39,6 +39,7 @@ def _raw(states, anchors):
         max_score=z,
         alias_motion=jnp.zeros((k, 3)),
         competitor=jnp.zeros((k, 3)),
+        has_competitor=jnp.zeros(k, bool),
         n_live=i,
     )
 
@@ -82,6 +83,10 @@ def test_a_decisive_other_anchor_contradicts_the_commit():
     out = _run([COMMIT, COMMIT, COMMIT, COMMIT], [A, A, FAR, FAR])
     assert list(out.state) == [COMMIT, COMMIT, AMBIGUOUS, COMMIT]
     assert REASONS[int(out.reason[2])] == "commit contradicted"
+    # the two explanations listed: the new winner, and the commit it contradicts
+    np.testing.assert_allclose(out.anchor[2], FAR, atol=1e-6)
+    assert out.has_competitor[2] and not out.has_competitor[[0, 1, 3]].any()
+    np.testing.assert_allclose(out.competitor[2], A, atol=1e-6)
     np.testing.assert_allclose(out.anchor[3], FAR, atol=1e-6)  # re-committed afterwards
 
 

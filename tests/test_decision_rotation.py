@@ -164,6 +164,11 @@ def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_ap
     df = to_frame(out, NAMES)
     row = df[(df.run == 0) & (df.k == 3) & (df.policy == "ours")].iloc[0]
     assert row.kind == "rotation" and np.isnan(row.tau_x) and np.isnan(row.tau_y)
+    # the table lists the twin's anchor as the competing explanation
+    twin = np.asarray(se2.compose(G, np.asarray([row.x, row.y, np.deg2rad(row.yaw_deg)])))
+    assert abs(row.alt_x - twin[0]) < 1e-2 and abs(row.alt_y - twin[1]) < 1e-2
+    done = df[(df.policy == "ours") & (df.state != "AMBIGUOUS")]
+    assert done.alt_x.isna().all()
 
 
 @pytest.mark.parametrize("cands", [true_wins, twin_wins], ids=["true_wins", "twin_wins"])
@@ -224,7 +229,14 @@ def test_stream_equals_batch_with_rotation(path):
         if d.kind == "rotation":
             assert '"symmetry": "rotation"' in line and '"tau": null' in line
             assert np.allclose(d.diagnostics["alias_motion"][:2], G[:2], atol=1e-3)
+            # the competing explanation listed is the twin, g T*, as in the batch
+            twin = np.asarray(se2.compose(G, np.asarray(d.anchor, np.float32)))
+            dxy, dth = se2.distance_pair(np.asarray(d.diagnostics["competitor"]), twin)
+            assert float(dxy) < 1e-2 and float(dth) < 1e-3
+            np.testing.assert_allclose(d.diagnostics["competitor"], out.competitor[k], atol=1e-4)
         else:
             assert d.diagnostics["alias_motion"] is None
+        if d.state != "AMBIGUOUS":
+            assert d.diagnostics["competitor"] is None
         kinds.append(d.kind)
     assert kinds[-1] is None and "rotation" in kinds  # ambiguous until the scans tell

@@ -28,6 +28,7 @@ from mfcl_jax.decision import lattice, machine, policies
 from mfcl_jax.decision.anchors import candidate_anchors, per_run
 from mfcl_jax.decision.rivals import RIVAL_SLOTS
 from mfcl_jax.decision.state import (
+    AMBIGUOUS,
     REASONS,
     STATE_NAMES,
     DecisionParams,
@@ -231,7 +232,9 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
     """One row per run x window x threshold set x policy (host side, NumPy/pandas).
 
     ``x, y, yaw_deg`` hold the policy's anchor (ours: the winner T*, the commit anchor when the
-    state is COMMIT); ``tau_x, tau_y`` are NaN unless the kind is translation. A rotational
+    state is COMMIT); ``tau_x, tau_y`` are NaN unless the kind is translation; ``alt_x, alt_y,
+    alt_yaw_deg`` hold the anchor of the strongest competing explanation of an AMBIGUOUS
+    decision (``Decisions.competitor``), NaN otherwise. A rotational
     alias is reported by ``kind == "rotation"``; its self-motion stays in
     ``Decisions.alias_motion`` (no column, so the table schema is unchanged).
     """
@@ -242,6 +245,8 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
         raise ValueError(f"to_frame: {len(names)} policy names for {v} variants")
     ir, ik, is_, iv = (a.ravel() for a in np.meshgrid(*map(np.arange, (r, k, s, v)), indexing="ij"))
     translation = d.kind.ravel() == lattice.TRANSLATION
+    # the competing explanation of an AMBIGUOUS decision (NaN otherwise)
+    alt = (d.state.ravel() == AMBIGUOUS) & d.has_competitor.ravel()
     df = pd.DataFrame(
         {
             "run": ir,
@@ -255,6 +260,9 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
             "yaw_deg": np.rad2deg(d.anchor[..., 2].ravel()),
             "tau_x": np.where(translation, d.tau[..., 0].ravel(), np.nan),
             "tau_y": np.where(translation, d.tau[..., 1].ravel(), np.nan),
+            "alt_x": np.where(alt, d.competitor[..., 0].ravel(), np.nan),
+            "alt_y": np.where(alt, d.competitor[..., 1].ravel(), np.nan),
+            "alt_yaw_deg": np.where(alt, np.rad2deg(d.competitor[..., 2].ravel()), np.nan),
             "B1": d.b1.ravel(),
             "B2": d.b2.ravel(),
             "margin": d.margin.ravel(),

@@ -142,6 +142,13 @@ def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisio
         alias_motion=jnp.where(
             kind == lattice.ROTATION, raw.alias_motion, jnp.zeros_like(raw.alias_motion)
         ),
+        # a contradicted commit's competitor is the commit itself; a held or left one has none
+        competitor=jnp.where(
+            contradicted,
+            held.anchor,
+            jnp.where(keep | deferred, jnp.zeros_like(raw.competitor), raw.competitor),
+        ),
+        has_competitor=contradicted | (raw.has_competitor & ~keep & ~deferred),
     )
     new_commit = ~held.committed & (raw.state == COMMIT)
     committed = keep | new_commit

@@ -114,6 +114,7 @@ def _decision(state, anchor, reason, max_score, b1=0, b2=0, n=0, c=0.0, gate=Fal
         max_score=max_score,
         alias_motion=jnp.zeros((*state.shape, 3), anchor.dtype),
         competitor=jnp.zeros((*state.shape, 3), anchor.dtype),
+        has_competitor=jnp.zeros_like(state, bool),
         n_live=jnp.zeros_like(state, i32),
     )
 

@@ -181,7 +181,12 @@ class Decisions:
     reason: jax.Array  # int32 key of REASONS
     max_score: jax.Array
     alias_motion: jax.Array  # (3,) self-motion g of the rotational alias; zero unless rotation
-    competitor: jax.Array  # (3,) the strongest explanation the certification did not rule out
+    # (3,) the strongest competing explanation of an AMBIGUOUS decision: the competitor the
+    # certification did not rule out (the one with the smallest largest advantage), else the
+    # runner-up consensus group counted in B2 (a held commit that a new winner contradicts,
+    # in ``machine``); zero when ``has_competitor`` is false
+    competitor: jax.Array
+    has_competitor: jax.Array  # bool
     n_live: jax.Array  # int32 competitors not ruled out (0 unless certification blocked)
 
 
@@ -300,6 +305,7 @@ def finish(
     rival_group = live & (jnp.arange(kk) != g.winner)
     counted = rival_group & (live_c[n_a : n_a + kk] | ~use_cert)
     b2 = jnp.max(jnp.where(counted, g.indep, 0)).astype(g.b2.dtype)
+    runner_up = jnp.argmax(jnp.where(counted, g.indep, -1))  # the group B2 counts
     tied = (counted | (jnp.arange(kk) == g.winner)) & live
     tied = tied & ((g.b1 - g.indep).astype(jnp.float32) < delta_min)
     lat_ok, lat_tau = lattice.detect_from(
@@ -380,7 +386,12 @@ def finish(
             jnp.where(use_cert, se2.compose(rival, se2.inverse(g.t_star)), pr.motion),
             jnp.zeros_like(pr.motion),
         ),
-        competitor=jnp.where(blocked, rival, jnp.zeros_like(rival)),
+        competitor=jnp.where(
+            blocked,
+            rival,
+            jnp.where(jnp.any(counted), g.anchor[runner_up], jnp.zeros_like(rival)),
+        ),
+        has_competitor=blocked | jnp.any(counted),
         n_live=jnp.sum(live_c).astype(jnp.int32),
     )
 

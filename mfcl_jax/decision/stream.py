@@ -34,7 +34,14 @@ from mfcl_jax.decision.rivals import (
     rival_fields,
     search_into,
 )
-from mfcl_jax.decision.state import COMMIT, REASONS, STATE_NAMES, DecisionParams, decide_prefix
+from mfcl_jax.decision.state import (
+    AMBIGUOUS,
+    COMMIT,
+    REASONS,
+    STATE_NAMES,
+    DecisionParams,
+    decide_prefix,
+)
 from mfcl_jax.frontend.path_search import PlanFields
 
 __all__ = ["Decision", "SelectiveInitializer"]
@@ -51,9 +58,11 @@ class Decision:
         kind: None | "translation" | "multimodal" | "rotation" | "mirror".
         tau: ``(tx, ty)`` or None.
         diagnostics: B1, B2, margin, spread, rooms, c_winner, winner_gate, probe_alias,
-            probe_c, n_champions, n_groups, reason, n_rejected, and alias_motion: the
+            probe_c, n_champions, n_groups, reason, n_rejected, alias_motion: the
             building's self-motion ``g = (x, y, yaw)`` carrying T* onto its rotational alias
-            ``g T*`` when the kind is rotation (None otherwise).
+            ``g T*`` when the kind is rotation (None otherwise), and competitor: the anchor
+            ``(x, y, yaw)`` of the strongest competing explanation when AMBIGUOUS
+            (``Decisions.competitor``; None otherwise or when there is none).
     """
 
     k: int
@@ -317,6 +326,11 @@ class SelectiveInitializer:
                 "n_rejected": self.n_rejected,
                 "alias_motion": (
                     tuple(float(v) for v in d.alias_motion) if kind == "rotation" else None
+                ),
+                "competitor": (
+                    tuple(float(v) for v in d.competitor)
+                    if int(d.state) == AMBIGUOUS and bool(d.has_competitor)
+                    else None
                 ),
             },
         )

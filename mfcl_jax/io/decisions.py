@@ -2,8 +2,11 @@
 
 Each line holds ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and, in files written
 since ``mfcl localize`` reports them, ``pose`` (the robot's pose ``{x, y, yaw_deg}`` in the
-plan frame when COMMIT, else null) and ``reason`` (why a DEFER / AMBIGUOUS, ``""`` when
-none). Files without the two optional keys still read; a line that has them is checked.
+plan frame when COMMIT, else null), ``reason`` (why a DEFER / AMBIGUOUS, ``""`` when
+none) and ``alternatives`` (when AMBIGUOUS: the robot's pose ``{x, y, yaw_deg}`` in the plan
+frame under each explanation the layer could not tell apart, best first: the consensus winner
+``T*``, then the strongest competitor; null for other states). Files without the optional
+keys still read; a line that has them is checked.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ __all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMM
 STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
 SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
 _KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
-_OPTIONAL = ("pose", "reason")
+_OPTIONAL = ("pose", "reason", "alternatives")
 
 
 def _check_pose(where: str, name: str, a) -> None:
@@ -50,6 +53,19 @@ def _check(where: str, d: dict) -> dict:
                 f"{where}: pose={d['pose']!r} with state={d['state']!r}; a pose is given "
                 "exactly when the state is COMMIT"
             )
+    if "alternatives" in d and d["alternatives"] is not None:
+        alt = d["alternatives"]
+        if not isinstance(alt, list) or not alt:
+            raise DataError(f"{where}: alternatives={alt!r}, expected a non-empty list or null")
+        if d["state"] != "AMBIGUOUS":
+            raise DataError(
+                f"{where}: alternatives given with state={d['state']!r}; only an AMBIGUOUS "
+                "decision lists them"
+            )
+        for i, a in enumerate(alt):
+            _check_pose(where, f"alternatives[{i}]", a)
+            if a is None:
+                raise DataError(f"{where}: alternatives[{i}] is null, expected {{x, y, yaw_deg}}")
     if "reason" in d and not isinstance(d["reason"], str):
         raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]
@@ -67,8 +83,8 @@ def decision_line(d: dict, where: str = "<decision>") -> str:
 
 def write_decisions(path, decisions) -> Path:
     """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and,
-    when present, ``pose`` and ``reason``) as JSON lines, validated first and written
-    atomically (all or nothing)."""
+    when present, ``pose``, ``reason`` and ``alternatives``) as JSON lines, validated first
+    and written atomically (all or nothing)."""
     path = Path(path)
     lines = [decision_line(d, f"{path}: decision #{i}") for i, d in enumerate(decisions)]
     return atomic_write_text(path, "\n".join(lines) + ("\n" if lines else ""))

@@ -101,13 +101,12 @@ def localize_batch(
         for row in rows.itertuples(index=False):
             k = int(row.k)
             d = _decision(row, k, float(w.t[k - 1]))
-            alternatives = None
-            if row.state == "AMBIGUOUS":
-                alternatives = [(row.x, row.y, np.deg2rad(row.yaw_deg))]
-                if np.isfinite(row.alt_x):
-                    alternatives.append((row.alt_x, row.alt_y, np.deg2rad(row.alt_yaw_deg)))
+            best = (row.x, row.y, np.deg2rad(row.yaw_deg))
+            rival = None
+            if np.isfinite(row.alt_x):
+                rival = (row.alt_x, row.alt_y, np.deg2rad(row.alt_yaw_deg))
             res.records.append(
-                status.record(d, w.X[k - 1], row.reason, offset, w.X_input[k - 1], alternatives)
+                status.record(d, w.X[k - 1], row.reason, offset, w.X_input[k - 1], best, rival)
             )
             sub = int(batch.runs.submap[r, k - 1])
             thin = f" rethinned voxel={w.voxel[k - 1]:.2f}" if W.rethinned(w)[k - 1] else ""

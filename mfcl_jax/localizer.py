@@ -86,11 +86,8 @@ class WindowResult:
         dec = self.decision
         d = json.loads(dec.to_json())
         reason = dec.diagnostics.get("reason", "")
-        alternatives = None
-        if dec.state == "AMBIGUOUS":
-            rival = dec.diagnostics.get("competitor")
-            alternatives = [dec.anchor] + ([] if rival is None else [rival])
-        return status.record(d, self.X, reason, offset, self.X_input, alternatives)
+        rival = dec.diagnostics.get("competitor")
+        return status.record(d, self.X, reason, offset, self.X_input, dec.anchor, rival)
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""

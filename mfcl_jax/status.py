@@ -199,7 +199,7 @@ def robot_pose(anchor, X) -> tuple[float, float, float]:
 
 
 def record(
-    decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None, alternatives=None
+    decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None, best=None, rival=None
 ) -> dict:
     """A decisions-file line: ``decision`` (``Decision.to_json``'s keys, anchor in the local
     frame of the layer's odometry) with its anchor moved to the plan frame (``offset``: plan =
@@ -208,16 +208,15 @@ def record(
     ``X_input`` the input odometry's pose at the same time (default ``X``): the anchor written
     is the one that places the robot at ``pose`` from the input odometry, ``(T* X) X_input^-1``.
 
-    ``alternatives``: for an AMBIGUOUS decision, the anchors ``(x, y, yaw)`` (local frame,
-    radians) of the explanations the layer could not tell apart, best first (``T*``, then the
-    strongest competitor); written as the robot's pose under each, ``A X_k`` in the plan frame.
-    None (written as null) for other states.
+    ``alternatives`` (AMBIGUOUS only, else null): the robot's pose ``A X_k`` in the plan frame
+    under each explanation the layer could not tell apart: ``best`` (``T*``), then ``rival``
+    (the strongest competitor, or None), both anchors ``(x, y, yaw)`` in the local frame.
     """
     ox, oy = (float(v) for v in offset)
     alt = None
-    if alternatives is not None:
+    if decision["state"] == "AMBIGUOUS" and best is not None:
         alt = []
-        for a in alternatives:
+        for a in [best] + ([] if rival is None else [rival]):
             px, py, pyaw = robot_pose(a, X)
             alt.append({"x": px + ox, "y": py + oy, "yaw_deg": math.degrees(pyaw)})
     d = dict(decision, pose=None, reason=str(reason), alternatives=alt)

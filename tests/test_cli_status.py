@@ -87,7 +87,7 @@ def test_an_ambiguous_record_lists_where_each_explanation_puts_the_robot():
     X = (1.0, 2.0, math.radians(30.0))
     amb = dict(OLD, state="AMBIGUOUS", symmetry="rotation", B1=4, B2=2, margin=2)
     best, rival = (20.0, 2.0, math.radians(90.0)), (-3.0, 0.0, math.radians(-90.0))
-    d = status.record(amb, X, "competitor not ruled out", (100.0, 0.0), alternatives=[best, rival])
+    d = status.record(amb, X, "competitor not ruled out", (100.0, 0.0), best=best, rival=rival)
     assert d["anchor"] is None and d["pose"] is None
     (p, q) = d["alternatives"]
     # robot pose under each anchor, A X_k, then + offset: (18, 3, 120 deg) and (-1, -1, -60 deg)

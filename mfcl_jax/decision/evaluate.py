@@ -28,7 +28,6 @@ from mfcl_jax.decision import lattice, machine, policies
 from mfcl_jax.decision.anchors import candidate_anchors, per_run
 from mfcl_jax.decision.rivals import RIVAL_SLOTS
 from mfcl_jax.decision.state import (
-    AMBIGUOUS,
     REASONS,
     STATE_NAMES,
     DecisionParams,
@@ -246,7 +245,7 @@ def to_frame(dec: Decisions, names=None, window_mask=None, n_bad=None) -> pd.Dat
     ir, ik, is_, iv = (a.ravel() for a in np.meshgrid(*map(np.arange, (r, k, s, v)), indexing="ij"))
     translation = d.kind.ravel() == lattice.TRANSLATION
     # the competing explanation of an AMBIGUOUS decision (NaN otherwise)
-    alt = (d.state.ravel() == AMBIGUOUS) & d.has_competitor.ravel()
+    alt = d.has_competitor.ravel()
     df = pd.DataFrame(
         {
             "run": ir,

@@ -186,7 +186,7 @@ class Decisions:
     # runner-up consensus group counted in B2 (a held commit that a new winner contradicts,
     # in ``machine``); zero when ``has_competitor`` is false
     competitor: jax.Array
-    has_competitor: jax.Array  # bool
+    has_competitor: jax.Array  # bool: an AMBIGUOUS decision with a competitor (false otherwise)
     n_live: jax.Array  # int32 competitors not ruled out (0 unless certification blocked)
 
 
@@ -391,7 +391,7 @@ def finish(
             rival,
             jnp.where(jnp.any(counted), g.anchor[runner_up], jnp.zeros_like(rival)),
         ),
-        has_competitor=blocked | jnp.any(counted),
+        has_competitor=(state == AMBIGUOUS) & (blocked | jnp.any(counted)),
         n_live=jnp.sum(live_c).astype(jnp.int32),
     )
 

@@ -34,14 +34,7 @@ from mfcl_jax.decision.rivals import (
     rival_fields,
     search_into,
 )
-from mfcl_jax.decision.state import (
-    AMBIGUOUS,
-    COMMIT,
-    REASONS,
-    STATE_NAMES,
-    DecisionParams,
-    decide_prefix,
-)
+from mfcl_jax.decision.state import COMMIT, REASONS, STATE_NAMES, DecisionParams, decide_prefix
 from mfcl_jax.frontend.path_search import PlanFields
 
 __all__ = ["Decision", "SelectiveInitializer"]
@@ -328,9 +321,7 @@ class SelectiveInitializer:
                     tuple(float(v) for v in d.alias_motion) if kind == "rotation" else None
                 ),
                 "competitor": (
-                    tuple(float(v) for v in d.competitor)
-                    if int(d.state) == AMBIGUOUS and bool(d.has_competitor)
-                    else None
+                    tuple(float(v) for v in d.competitor) if bool(d.has_competitor) else None
                 ),
             },
         )

@@ -63,9 +63,9 @@ def _check(where: str, d: dict) -> dict:
                 "decision lists them"
             )
         for i, a in enumerate(alt):
-            _check_pose(where, f"alternatives[{i}]", a)
             if a is None:
                 raise DataError(f"{where}: alternatives[{i}] is null, expected {{x, y, yaw_deg}}")
+            _check_pose(where, f"alternatives[{i}]", a)
     if "reason" in d and not isinstance(d["reason"], str):
         raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]

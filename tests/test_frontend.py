@@ -367,3 +367,31 @@ def test_csv_adapter(tmp_path):
         with pytest.raises(ValueError, match=msg) as e:
             load_candidates_csv(p, n_submaps=3, J=4)
         assert str(p) in str(e.value)
+
+
+def test_block_scores_are_the_score_of_contiguous_blocks_of_the_points():
+    """``verify.block_scores``: block b holds the b-th quarter of the valid points (in order)
+    with their own free samples; each block's number is ``score_fields`` of those points."""
+    rng = np.random.default_rng(3)
+    n, m, nb = 20, 3, 4
+    hit = jnp.asarray(rng.uniform(0, 1, n), jnp.float32)
+    pen = jnp.asarray(rng.uniform(0, 1, n * m), jnp.float32)
+    ok = np.ones(n, bool)
+    ok[[2, 17]] = False  # 18 valid points: blocks of 4, 5, 4, 5 by rank
+    q_ok = np.repeat(ok, m)
+    q_ok[5] = False  # one free sample of point 1 is not free
+    got = np.asarray(verify.block_scores(hit, pen, jnp.asarray(ok), jnp.asarray(q_ok), nb, 0.5))
+    rank = np.cumsum(ok) - 1
+    block = np.where(ok, rank * nb // ok.sum(), -1)
+    for b in range(nb):
+        sel = block == b
+        qs = np.repeat(sel, m) & q_ok
+        want = float(np.asarray(hit)[sel].mean() - 0.5 * np.asarray(pen)[qs].mean())
+        np.testing.assert_allclose(got[b], want, rtol=1e-5)
+    assert [int((block == b).sum()) for b in range(nb)] == [5, 4, 5, 4]
+    # a difference confined to one block shows in that block alone
+    local = hit.at[15].add(-0.9)
+    d = got - np.asarray(
+        verify.block_scores(local, pen, jnp.asarray(ok), jnp.asarray(q_ok), nb, 0.5)
+    )
+    assert d[int(block[15])] > 0.15 and np.allclose(np.delete(d, int(block[15])), 0.0)

@@ -134,8 +134,8 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     poses = se2.compose(anchors[None], X[:, None])
 
     def adv(steps, n_free):
-        s = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0, n_free,
-                                   steps)  # fmt: skip
+        s, _ = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0,
+                                      n_free, steps)  # fmt: skip
         return np.asarray(s[:, :1] - s[:, 1:])  # (windows, 2)
 
     m = DecisionParams().cert_margin
@@ -151,6 +151,41 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     k_c = int(np.argmax(base.state == 2))
     at = _decide(run, maps, np.asarray(shifted)[None], k_c)
     np.testing.assert_array_equal(at.state, base.state)
+
+
+def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
+    """``certify.certify`` counts each window's blocks toward contradicting a competitor
+    (``max_adv``), a block's advantage divided by ``sqrt(CERT_BLOCKS * MARGIN_POINTS / P)``,
+    and never toward favouring it (``min_adv`` stays the whole-window test)."""
+    from mfcl_jax.decision import certify
+
+    maps, run = _row_walk()
+    X = jnp.asarray(run["X"])
+    ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]
+    bounds = (jnp.asarray(run["window_start"]), jnp.asarray(run["window_end"]))
+    p = DecisionParams()
+    shifted = np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), A))
+    comp = jnp.asarray(shifted[None], jnp.float32)
+    k = K - 1
+    st = certify.certify(k, jnp.asarray(A, jnp.float32), comp, jnp.array([True]), X, ev, bounds,
+                         maps, p)  # fmt: skip
+    # the same numbers by hand over the chain of scan-disjoint windows
+    idx, ok = certify.chain(k, *bounds, jnp.any(ev[2], axis=1), 12)
+    idx = np.asarray(idx)[np.asarray(ok)]
+    anchors = jnp.asarray(np.stack([A, shifted]), jnp.float32)
+    poses = se2.compose(anchors[None], X[idx][:, None])
+    s, sb = certify._window_scores(poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0,
+                                   certify.FREE_PER_RAY)  # fmt: skip
+    s, sb = np.asarray(s), np.asarray(sb)
+    assert sb.shape == (len(idx), 2, certify.CERT_BLOCKS)
+    scale = np.sqrt(certify.CERT_BLOCKS * certify.MARGIN_POINTS / ev[0].shape[1])
+    window = s[:, 0] - s[:, 1]
+    block = (sb[:, 0] - sb[:, 1]).max(axis=1) / scale
+    np.testing.assert_allclose(float(st.max_adv[0]), max(window.max(), block.max()), atol=1e-5)
+    np.testing.assert_allclose(float(st.min_adv[0]), window.min(), atol=1e-5)
+    # the blocks are parts of the window: the shifted row is worse somewhere in them by more
+    # than over the whole window (it differs at the row's end only)
+    assert (sb[:, 0] - sb[:, 1]).max() > window.max()
 
 
 def test_stream_and_batch_search_at_the_same_prefixes_and_agree(monkeypatch):

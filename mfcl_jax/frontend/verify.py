@@ -38,12 +38,14 @@ from mfcl_jax.frontend.materialize import materialize
 
 __all__ = [
     "FAR",
+    "block_scores",
     "free_samples",
     "plan_fields",
     "stack4",
     "sample",
     "sample_xy",
     "occupancy",
+    "point_terms",
     "rotation",
     "score",
     "score_fields",
@@ -221,14 +223,32 @@ def score(pose, pts, ok, q, q_ok, feats, sigma, lam, rot=None):
     return occupancy(pose, pts, ok, feats, sigma, rot) - lam * _mean(pen, q_ok)
 
 
-def score_fields(pose, pts, ok, q, q_ok, origin, res, sdf4, pen4, sigma, lam):
-    """``score`` with the fields given explicitly (``origin (2,)``, static ``res``, ``sdf4``,
-    ``pen4``), for callers that hold them outside ``FloorplanFeatures`` (the certification)."""
+def point_terms(pose, pts, q, origin, res, sdf4, pen4, sigma):
+    """The terms ``score_fields`` averages, per point: ``(hit (n,), pen (m,))``, the
+    wall-surface kernel of each point and the free-space penalty of each free sample."""
     x, y = _transform(pose, None, pts[:, 0], pts[:, 1])
     d = sample_xy(origin, res, sdf4, x, y, FAR)
     qx, qy = _transform(pose, None, q[:, 0], q[:, 1])
-    pen = sample_xy(origin, res, pen4, qx, qy, 1.0)
-    return _mean(jnp.exp(-0.5 * (d / sigma) ** 2), ok) - lam * _mean(pen, q_ok)
+    return jnp.exp(-0.5 * (d / sigma) ** 2), sample_xy(origin, res, pen4, qx, qy, 1.0)
+
+
+def score_fields(pose, pts, ok, q, q_ok, origin, res, sdf4, pen4, sigma, lam):
+    """``score`` with the fields given explicitly (``origin (2,)``, static ``res``, ``sdf4``,
+    ``pen4``), for callers that hold them outside ``FloorplanFeatures`` (the certification)."""
+    hit, pen = point_terms(pose, pts, q, origin, res, sdf4, pen4, sigma)
+    return _mean(hit, ok) - lam * _mean(pen, q_ok)
+
+
+def block_scores(hit, pen, ok, q_ok, n_blocks: int, lam):
+    """``score_fields`` of ``n_blocks`` contiguous blocks of the points (by rank among the
+    valid points ``ok (n,)``, each block with its points' free samples ``q_ok (n * M,)``,
+    each point's samples together, as ``free_samples`` lays them out); ``(n_blocks,)``."""
+    n = ok.shape[0]
+    rank = jnp.cumsum(ok) - 1
+    block = jnp.where(ok, (rank * n_blocks) // jnp.maximum(jnp.sum(ok), 1), -1)
+    block_q = jnp.repeat(block, q_ok.shape[0] // n)
+    one = lambda b: _mean(hit, block == b) - lam * _mean(pen, q_ok & (block_q == b))  # noqa: E731
+    return jax.vmap(one)(jnp.arange(n_blocks))
 
 
 def scores(poses, pts, ok, q, q_ok, feats, sigma, lam):

@@ -148,7 +148,10 @@ def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_ap
     for r, anchor in ((0, A), (1, np.asarray(se2.compose(G, A)))):
         d = ours(jax.tree.map(lambda x, r=r: x[r : r + 1], out))
         rot = (d.state == 1) & (d.kind == ROTATION)
-        assert rot.sum() >= 3, (d.state.tolist(), d.kind.tolist())
+        # the probe names the twin before the scans tell the units apart (since the blocks of
+        # the certification, stop 22, the view through a door rules it out within a window
+        # or two when the champions are true)
+        assert rot.sum() >= (1 if r == 0 else 3), (d.state.tolist(), d.kind.tolist())
         assert (d.kind != TRANSLATION).all()
         assert out.state[r, -1, 0, no_probe] == 2  # without the probe it commits
         assert float(se2.distance_pair(out.anchor[r, -1, 0, no_probe], anchor)[0]) < 0.05
@@ -177,7 +180,8 @@ def test_symmetry_breaking_structure_commits(path, cands):
     # once the twin's image of the path leaves the plan, the gate drops the twin champions too
     d = ours(evaluate(run(path, cands)))
     assert d.state[-1] == 2, (d.state.tolist(), d.kind.tolist())
-    assert (d.kind == ROTATION).any()  # AMBIGUOUS(rotation) inside unit A, then COMMIT
+    if cands is twin_wins:  # AMBIGUOUS(rotation) while the twin wins, then COMMIT to the truth
+        assert (d.kind == ROTATION).any()
     assert float(se2.distance_pair(d.anchor[-1], A)[0]) < 0.05
     np.testing.assert_allclose(d.alias_motion[-1], 0.0)
 

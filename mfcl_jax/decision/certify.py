@@ -220,7 +220,7 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
                            FREE_PER_RAY)  # fmt: skip
     adv = s[:, :1] - s[:, 1:]  # (W, C)
     # a block's advantage at equal confidence with a whole window (module docstring)
-    scale = math.sqrt(CERT_BLOCKS * MARGIN_POINTS / pts.shape[1])
+    scale = math.sqrt(sb.shape[2] * MARGIN_POINTS / pts.shape[1])
     adv_block = jnp.max(sb[:, :1, :] - sb[:, 1:, :], axis=2) / scale  # (W, C)
     contra = jnp.maximum(adv, adv_block)
     max_adv = jnp.max(jnp.where(ok[:, None], contra, -jnp.inf), axis=0)

@@ -237,8 +237,19 @@ class SelectiveInitializer:
         self.ev_mask = _grow(self.ev_mask, 0, self.k + 1, False)
         self.traj = _grow(self.traj, 0, self.t + tr.shape[0], 0.0)
         self.traj_mask = _grow(self.traj_mask, 0, self.t + tr.shape[0], False)
-        H = np.asarray(se2.anchor(Y, X[None]), np.float32) if j else np.zeros((0, 3), np.float32)
-        H, s, m, bad = (np.asarray(a) for a in sanitize(H, s, np.ones(j, bool)))
+        # Anchors at the buffer's static width (padded rows sliced off): the number of
+        # candidates changes from window to window, and eager ops on a new shape compile anew
+        # (measured: 1.2-1.6 s stalls at the first windows of ``benchmarks/stream.py``).
+        jc = self.H.shape[1]
+        y_pad, s_pad, m_pad = (
+            np.zeros((jc, 3), np.float32),
+            np.zeros(jc, np.float32),
+            np.arange(jc) < j,
+        )
+        y_pad[:j], s_pad[:j] = Y, s
+        H = se2.anchor(y_pad, X[None])
+        H, s, m, bad = (np.asarray(a) for a in sanitize(H, s_pad, m_pad))
+        H, s, m = H[:j], s[:j], m[:j]
         self.n_rejected += int(bad)
         self.H[self.k, :j], self.score[self.k, :j], self.mask[self.k, :j] = H, s, m
         self.traj[self.t : self.t + tr.shape[0]] = tr

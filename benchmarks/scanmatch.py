@@ -63,11 +63,11 @@ def main(argv=None) -> pd.DataFrame:
         kf = W.keyframes(rec.seq.odometry, wp.keyframe_spacing, wp.keyframe_turn_deg)
         raw, t = rec.seq.odometry[kf], rec.seq.times[kf]
         seg = W.odometry_segments(raw, t)
-        bounds = W.segment_bounds(raw, t, wp.d_s, wp.step)
         truth = pose_at(rec.truth.times, rec.truth.poses, t)
         t0 = time.perf_counter()
         odo = Odometer(wp.scan_match)
         matched = odo.extend([rec.seq.scans[i] for i in kf], raw, seg)
+        bounds = W.segment_bounds(raw, odo.segments, wp.d_s, wp.step)
         ms.append(dict(family=rec.meta["family"], ms=1000 * (time.perf_counter() - t0) / len(kf)))
         for name, o in (("input", raw), ("matched", matched)):
             e_xy, e_th = window_errors(bounds, o, truth)

@@ -79,7 +79,8 @@ class RunBatch:
 
     Attributes:
         traj: ``(R, T, 3)`` odometry poses ``^L T_t`` of the scans (sensor poses in L).
-        traj_t: ``(R, T)`` float64 scan time stamps.
+        traj_seg: ``(R, T)`` int32 odometry segment of each pose (``Windows.segments``): 0,
+            plus one after every odometry jump; -1 where padded.
         traj_mask: ``(R, T)`` bool.
         window_start: ``(R, K)`` int32 index into ``traj`` of window k's first scan.
         window_end: ``(R, K)`` int32 index into ``traj`` of window k's last scan.
@@ -88,7 +89,7 @@ class RunBatch:
     """
 
     traj: jax.Array
-    traj_t: jax.Array
+    traj_seg: jax.Array
     traj_mask: jax.Array
     window_start: jax.Array
     window_end: jax.Array

@@ -111,15 +111,19 @@ class Localizer:
         self._fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
         self._maps = decision_maps(floorplan)
         self._search = rival_fields(floorplan)  # the rival search's view of the plan
+        self._cut = None  # (seq, its Windows, its Odometer) of the last n_windows call
 
     def windows(self, seq) -> W.Windows:
         """The windows of ``seq`` (as the batch path cuts them)."""
         return W.cut(seq, self.params.window)
 
     def n_windows(self, seq) -> int:
-        p = self.params.window
-        kf = W.keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        return len(W.segment_bounds(seq.odometry[kf], np.asarray(seq.times)[kf], p.d_s, p.step))
+        """The number of windows of ``seq``. The windows depend on the LiDAR odometry (its
+        jump test splits segments), so they are cut here, once: ``run(seq)`` reuses them."""
+        if self._cut is None or self._cut[0] is not seq:
+            odometer = Odometer(self.params.window.scan_match)
+            self._cut = (seq, W.cut(seq, self.params.window, odometer=odometer), odometer)
+        return len(self._cut[1])
 
     def run(self, seq, variant: str = "ours") -> Iterator[WindowResult]:
         """Streams the windows of ``seq``; yields one ``WindowResult`` per window."""
@@ -139,8 +143,7 @@ class Localizer:
         for seq, w, k in self._new_windows(prefixes):
             kf = w.keyframes
             j0, j1 = w.bounds[k]
-            seen = kf[: j1 + 1]
-            seg = W.odometry_segments(seq.odometry[seen], np.asarray(seq.times)[seen])
+            seg = w.segments[: j1 + 1]
             if cur is not None and seg[j0] != cur:
                 # An odometry jump (a restart): the frames before and after are incommensurable,
                 # so the layer starts over (as the batch path does, decision.split_segments).
@@ -195,9 +198,11 @@ class Localizer:
         # One LiDAR odometer for the recording: each prefix only adds keyframes to it.
         odometer = Odometer(self.params.window.scan_match)
         for seq in prefixes:
-            if self.n_windows(seq) <= seen:
-                continue
-            w = W.cut(seq, self.params.window, start=seen, odometer=odometer)
+            if self._cut is not None and self._cut[0] is seq and seen == 0:
+                # Cut by n_windows (the CLI counts the windows first); used once.
+                (_, w, odometer), self._cut = self._cut, None
+            else:
+                w = W.cut(seq, self.params.window, start=seen, odometer=odometer)
             for k in range(len(w)):
                 yield seq, w, k
             seen += len(w)

@@ -50,9 +50,9 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     """Pads the windows of many runs into one ``WindowBatch``.
 
     Args:
-        items: ``(seq, windows, building)`` per run: the ``ScanSequence`` (times of its
-            keyframes, with the windows' odometry, fill the run's trajectory), its ``Windows``,
-            its building index.
+        items: ``(seq, windows, building)`` per run: the ``ScanSequence`` (not read: the
+            ``Windows`` carry the run's odometry and segments), its ``Windows``, its building
+            index.
         capacity: point capacity (default: the bucket of the fullest submap).
         min_capacity: the smallest bucket.
     """
@@ -77,17 +77,17 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     T = max([len(w.keyframes) for _, w, _ in items] + [1])
     K = max([len(w) for _, w, _ in items] + [1])
     traj = np.zeros((R, T, 3), np.float32)
-    traj_t = np.full((R, T), np.nan)
+    traj_seg = np.full((R, T), -1, np.int32)
     traj_mask = np.zeros((R, T), bool)
     window_start = np.zeros((R, K), np.int32)
     window_end = np.zeros((R, K), np.int32)
     window_mask = np.zeros((R, K), bool)
     submap = np.full((R, K), -1, np.int32)
     i = 0
-    for r, (seq, w, b) in enumerate(items):
+    for r, (_, w, b) in enumerate(items):
         m = len(w.keyframes)
         traj[r] = _pad_rows(w.odometry, T)
-        traj_t[r, :m] = np.asarray(seq.times)[w.keyframes]
+        traj_seg[r, :m] = w.segments
         traj_mask[r, :m] = True
         for k, (pts, org) in enumerate(zip(w.points, w.origins, strict=True)):
             points[i, : len(pts)], origins[i, : len(pts)], mask[i, : len(pts)] = pts, org, True
@@ -99,7 +99,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
         window_end[r, : len(w)] = w.bounds[:, 1]
         window_mask[r, : len(w)] = True
     subs = SubmapBatch(points, origins, mask, X, run, window, t, np.zeros(n, np.int32))
-    runs = RunBatch(traj, traj_t, traj_mask, window_start, window_end, window_mask, submap)
+    runs = RunBatch(traj, traj_seg, traj_mask, window_start, window_end, window_mask, submap)
     rb = np.asarray([b for *_, b in items], np.int32)
     ev = Evidence(ev_p, ev_o, ev_m)
     return WindowBatch(subs, runs, building, rb, ev, [w for _, w, _ in items])
@@ -129,7 +129,7 @@ def concat(batches) -> WindowBatch:
         runs.append(
             (
                 pad(r.traj, 1, T, 0.0),
-                pad(r.traj_t, 1, T, np.nan),
+                pad(r.traj_seg, 1, T, -1),
                 pad(r.traj_mask, 1, T, False),
                 pad(r.window_start, 1, K, 0),
                 pad(r.window_end, 1, K, 0),

@@ -17,7 +17,14 @@ themselves, as kiss-icp does in 3-D:
    farther from the prediction than ``max_shift``/``max_turn_deg``, is not trusted: the pose is
    the prediction;
 4. an odometry jump (``windows.odometry_segments``) starts over: the keyframe keeps its input
-   pose and the local map is emptied, so the jump stays visible downstream.
+   pose and the local map is emptied, so the jump stays visible downstream;
+5. the jump test finds the jumps the input's step does not show (an odometry restart near
+   where its frame began: a 1 m step with a half turn): where the scan at the input's increment
+   fits the local map poorly (mean squared misfit over ``jump_fit``), it is matched again from
+   two predictions that ignore the input (the robot kept moving as it was; it stood still);
+   a trusted match that fits well (misfit at most ``jump_fit``), ``jump_ratio`` times better
+   than the input's, and farther from it than ``max_shift``/``max_turn_deg``, is a jump: the
+   keyframe starts a new odometry segment (``Odometer.segments``) as in 4.
 
 The refined odometry starts at the input's first pose and is causal: keyframe ``m`` depends on
 keyframes ``0..m`` only, so a prefix's poses are the whole sequence's first poses. Input is
@@ -62,6 +69,9 @@ class ScanMatchParams:
         prior_xy, prior_yaw_deg: std of the input odometry's increment error per keyframe.
         min_inliers: fewest inliers for a match to be trusted.
         max_shift, max_turn_deg: largest trusted correction of the prediction.
+        jump_fit: mean squared misfit (m^2, capped at ``gate``) above which the input's
+            increment is put to the jump test, and under which an alternative must fit.
+        jump_ratio: how many times better than the input's an alternative must fit.
         chunk: keyframes per kernel call (static shape).
     """
 
@@ -83,6 +93,8 @@ class ScanMatchParams:
     min_inliers: int = 24
     max_shift: float = 0.5
     max_turn_deg: float = 10.0
+    jump_fit: float = 0.02
+    jump_ratio: float = 3.0
     chunk: int = 32
 
     def __post_init__(self):
@@ -91,8 +103,8 @@ class ScanMatchParams:
             if not (isinstance(v, int) and v > 0):
                 raise ValueError(f"ScanMatchParams: {name} must be a positive int, got {v!r}")
         for name in ("voxel", "max_range", "gate", "sigma", "point_std", "point_weight",
-                     "normal_radius", "degenerate", "min_gain", "prior_xy",
-                     "prior_yaw_deg", "max_shift", "max_turn_deg"):  # fmt: skip
+                     "normal_radius", "degenerate", "min_gain", "prior_xy", "prior_yaw_deg",
+                     "max_shift", "max_turn_deg", "jump_fit", "jump_ratio"):  # fmt: skip
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v > 0):
                 raise ValueError(f"ScanMatchParams: {name} must be > 0, got {name}={v!r}")
@@ -208,40 +220,58 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
     # The input's increment stands unless the scans clearly fit better elsewhere: a good
     # odometry (an LIO's) is then kept as it is, not replaced by the matcher's own noise.
     better = before - after > th["min_gain"] ** 2
-    return jnp.where(better, pose, pred), inliers
+    return jnp.where(better, pose, pred), inliers, jnp.where(better, after, before)
 
 
 def _step(th, carry, inp):
-    prev, prev_odo, mpts, mnrm, mmask, slot = carry
+    prev, prev_odo, prev_inc, mpts, mnrm, mmask, slot = carry
     scan, smask, odo, valid, reset = inp
     pred = se2.compose(prev, se2.between(prev_odo, odo))
     K, P = mmask.shape
     flat = (mpts.reshape(K * P, 2), mnrm.reshape(K * P, 2), mmask.reshape(K * P))
-    pose, inl = _icp(pred, scan, smask, *flat, th)
-    shift = jnp.hypot(*(pose[:2] - pred[:2]))
-    turn = jnp.abs(se2.angle_diff(pose[2], pred[2]))
-    trusted = (
-        (inl >= th["min_inliers"])
-        & (jnp.sum(mmask) >= th["min_inliers"])
-        & (shift <= th["max_shift"])
-        & (turn <= th["max_turn"])
-        & jnp.all(jnp.isfinite(pose))
-    )
+    pose, inl, fit = _icp(pred, scan, smask, *flat, th)
+    mapped = jnp.sum(mmask) >= th["min_inliers"]
+
+    def moved(a, b):
+        return (jnp.hypot(*(a[:2] - b[:2])) <= th["max_shift"]) & (
+            jnp.abs(se2.angle_diff(a[2], b[2])) <= th["max_turn"]
+        )
+
+    trusted = (inl >= th["min_inliers"]) & mapped & moved(pose, pred) & jnp.all(jnp.isfinite(pose))
     pose = jnp.where(trusted, pose, pred)
-    pose = jnp.where(reset, odo, pose)
-    mmask = jnp.where(reset, False, mmask)
+    # The jump test (step 5 of the module's doc), run only where the input's increment leaves
+    # the scan fitting the local map poorly; ``lax.cond`` skips it everywhere else.
+    inf = jnp.asarray(jnp.inf, fit.dtype)
+
+    def alternatives(_):
+        best_pose, best_fit = pred, inf
+        for guess in (se2.compose(prev, prev_inc), prev):  # kept moving as it was; stood still
+            p2, i2, f2 = _icp(guess, scan, smask, *flat, th)
+            ok = (i2 >= th["min_inliers"]) & moved(p2, guess) & jnp.all(jnp.isfinite(p2))
+            take = ok & (f2 < best_fit)
+            best_pose, best_fit = jnp.where(take, p2, best_pose), jnp.where(take, f2, best_fit)
+        return best_pose, best_fit
+
+    poor = valid & ~reset & mapped & (fit > th["jump_fit"])
+    pose2, fit2 = jax.lax.cond(poor, alternatives, lambda _: (pred, inf), None)
+    jump = poor & ~moved(pose2, pose) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
+    start = reset | jump
+    pose = jnp.where(start, odo, pose)
+    mmask = jnp.where(start, False, mmask)
     new_pts = mpts.at[slot].set(se2.apply(pose, scan))
     new_nrm = mnrm.at[slot].set(se2.rotate(pose[2], _normals(scan, smask, th["normal_radius"])))
     new_mask = mmask.at[slot].set(smask)
+    inc = jnp.where(start, jnp.zeros_like(prev_inc), se2.between(prev, pose))
     out = (
         jnp.where(valid, pose, prev),
         jnp.where(valid, odo, prev_odo),
+        jnp.where(valid, inc, prev_inc),
         jnp.where(valid, new_pts, mpts),
         jnp.where(valid, new_nrm, mnrm),
         jnp.where(valid, new_mask, mmask),
         jnp.where(valid, (slot + 1) % K, slot),
     )
-    return out, (pose, trusted)
+    return out, (pose, trusted, jump)
 
 
 @jax.jit
@@ -266,6 +296,8 @@ def _thresholds(p: ScanMatchParams) -> dict:
         min_inliers=np.int32(p.min_inliers),
         max_shift=f(p.max_shift),
         max_turn=f(np.deg2rad(p.max_turn_deg)),
+        jump_fit=f(p.jump_fit),
+        jump_ratio=f(p.jump_ratio),
     )
 
 
@@ -288,6 +320,7 @@ class Odometer:
         self._carry = (
             np.zeros(3, np.float32),
             np.zeros(3, np.float32),
+            np.zeros(3, np.float32),
             np.zeros((p.map_scans, p.points, 2), np.float32),
             np.zeros((p.map_scans, p.points, 2), np.float32),
             np.zeros((p.map_scans, p.points), bool),
@@ -295,11 +328,18 @@ class Odometer:
         )
         self.poses = np.zeros((0, 3), np.float64)
         self.trusted = np.zeros(0, bool)
+        self.starts = np.zeros(0, bool)
         self._last_seg = None  # segment id of the last keyframe run
         self._origin = None  # the kernel works in float32 around the first keyframe's position
 
     def __len__(self) -> int:
         return len(self.poses)
+
+    @property
+    def segments(self) -> np.ndarray:
+        """``(M,)`` odometry segment of every keyframe so far: 0, plus one after every jump
+        (the input's, as given to ``extend``, and those the jump test found)."""
+        return np.maximum(np.cumsum(self.starts) - 1, 0).astype(np.int64)
 
     def extend(self, scans, odometry, segments) -> np.ndarray:
         """Adds keyframes; returns the refined poses ``(M, 3)`` of all keyframes so far.
@@ -314,13 +354,17 @@ class Odometer:
         segments = np.asarray(segments).reshape(-1)
         p = self.params
         if not p.enabled:
+            first = [self._last_seg != segments[0]] if len(segments) else []
+            starts = np.concatenate([first, segments[1:] != segments[:-1]]).astype(bool)
             self.poses = np.concatenate([self.poses, odometry])
             self.trusted = np.concatenate([self.trusted, np.zeros(len(odometry), bool)])
+            self.starts = np.concatenate([self.starts, starts[: len(odometry)]])
+            self._last_seg = segments[-1] if len(segments) else self._last_seg
             return self.poses
         if self._origin is None and len(odometry):
             self._origin = np.array([*odometry[0, :2], 0.0])
         local = odometry - self._origin if len(odometry) else odometry
-        out_p, out_t = [], []
+        out_p, out_t, out_s = [], [], []
         for i0 in range(0, len(odometry), p.chunk):
             sl = slice(i0, min(i0 + p.chunk, len(odometry)))
             m = sl.stop - sl.start
@@ -335,13 +379,17 @@ class Odometer:
             starts = np.concatenate([[self._last_seg != seg[0]], seg[1:] != seg[:-1]])
             reset = np.zeros(p.chunk, bool)
             reset[:m] = starts
-            self._carry, (pose, trusted) = _chunk(self._th, self._carry, S, M, O, valid, reset)
+            self._carry, (pose, trusted, jump) = _chunk(
+                self._th, self._carry, S, M, O, valid, reset
+            )
             out_p.append(np.asarray(pose, np.float64)[:m] + self._origin)
             out_t.append(np.asarray(trusted)[:m] & ~starts)
+            out_s.append(starts | np.asarray(jump)[:m])
             self._last_seg = seg[-1]
         if out_p:
             self.poses = np.concatenate([self.poses, *out_p])
             self.trusted = np.concatenate([self.trusted, *out_t])
+            self.starts = np.concatenate([self.starts, *out_s])
         return self.poses
 
 

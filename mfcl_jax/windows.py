@@ -138,10 +138,10 @@ def odometry_segments(poses, times) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(jump)]).astype(np.int64)
 
 
-def segment_bounds(poses, times, d_s: float, step: float = 2.0) -> np.ndarray:
-    """``window_bounds`` of each odometry segment (``odometry_segments``), in order: no window
-    straddles a jump."""
-    seg = odometry_segments(poses, times)
+def segment_bounds(poses, segments, d_s: float, step: float = 2.0) -> np.ndarray:
+    """``window_bounds`` of each odometry segment (``segments (T,)``: ``Windows.segments``),
+    in order: no window straddles a jump."""
+    seg = np.asarray(segments).reshape(-1)
     out = []
     for s_id in np.unique(seg):
         idx = np.flatnonzero(seg == s_id)
@@ -235,6 +235,9 @@ class Windows:
         odometry: ``(M, 3)`` the layer's odometry at every keyframe.
         X_input: ``(K, 3)`` the input odometry at each window's last scan (an anchor of the
             layer's frame is reported in the input's by ``status.record``).
+        segments: ``(M,)`` odometry segment of every keyframe: 0, plus one after every jump,
+            whether the input odometry's step shows it (``odometry_segments``) or the LiDAR
+            odometry's jump test finds it (``scanmatch``). No window straddles a jump.
     """
 
     keyframes: np.ndarray
@@ -247,6 +250,7 @@ class Windows:
     params: WindowParams
     odometry: np.ndarray
     X_input: np.ndarray
+    segments: np.ndarray
 
     def __len__(self) -> int:
         return len(self.bounds)
@@ -271,21 +275,21 @@ def _thinned(seq, idx, poses, p: WindowParams):
 
 
 def keyframe_odometry(seq, kf, p: WindowParams, odometer: Odometer | None = None):
-    """The layer's odometry ``(M, 3)`` at the keyframes ``kf``: the input's, refined by the
-    LiDAR odometry where ``p.scan_match.enabled``.
+    """The layer's odometry at the keyframes ``kf``: ``(poses (M, 3), segments (M,))``, the
+    input's poses refined by the LiDAR odometry where ``p.scan_match.enabled``, and the
+    odometry segments (``Windows.segments``).
 
     ``odometer``: an ``Odometer`` already fed the first keyframes of this sequence (the live
     path, which sees ever longer prefixes); it is extended with the rest.
     """
     raw = np.asarray(seq.odometry, np.float64)[kf]
-    if not p.scan_match.enabled:
-        return raw
     odo = odometer if odometer is not None else Odometer(p.scan_match)
     n = len(odo)
     if n > len(kf):
         raise ValueError(f"{seq.source}: odometer fed {n} keyframes, the sequence has {len(kf)}")
     seg = odometry_segments(raw, np.asarray(seq.times)[kf])
-    return odo.extend([seq.scans[i] for i in kf[n:]], raw[n:], seg[n:])[: len(kf)]
+    poses = odo.extend([seq.scans[i] for i in kf[n:]], raw[n:], seg[n:])
+    return poses[: len(kf)], odo.segments[: len(kf)]
 
 
 def cut(
@@ -304,9 +308,8 @@ def cut(
     p = params or WindowParams()
     kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
     raw = np.asarray(seq.odometry, np.float64)[kf]
-    bounds = segment_bounds(raw, np.asarray(seq.times)[kf], p.d_s, p.step)
-    bounds = bounds[start:upto]
-    odo = keyframe_odometry(seq, kf, p, odometer)
+    odo, seg = keyframe_odometry(seq, kf, p, odometer)
+    bounds = segment_bounds(raw, seg, p.d_s, p.step)[start:upto]
     pts, orgs, vox = [], [], []
     for j0, j1 in bounds:
         a, o, v = _thinned(seq, kf[j0 : j1 + 1], odo[j0 : j1 + 1], p)
@@ -325,6 +328,7 @@ def cut(
         p,
         odo,
         raw[last].reshape(-1, 3),
+        seg,
     )
 
 
@@ -333,7 +337,7 @@ def window(w: Windows, k: int) -> Windows:
     sl = slice(k, k + 1)
     return Windows(
         w.keyframes, w.bounds[sl], w.points[sl], w.origins[sl], w.voxel[sl], w.X[sl], w.t[sl],
-        w.params, w.odometry, w.X_input[sl],
+        w.params, w.odometry, w.X_input[sl], w.segments,
     )  # fmt: skip
 
 

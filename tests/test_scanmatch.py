@@ -93,6 +93,40 @@ def test_an_odometry_jump_restarts_at_the_input_pose():
     assert np.hypot(*(out[60, :2] - out[59, :2])) > 400.0  # the jump stays visible
 
 
+def _rezeroed(seq, at, step=(0.3, 0.0), turn_deg=90.0):
+    """``seq`` whose odometry restarts at scan ``at`` in a frame placed so that the input's
+    step there is small (``step`` m, ``turn_deg``): a restart the step test cannot see."""
+    from mfcl_jax.sources import ScanSequence
+
+    odo = np.asarray(seq.odometry, np.float64)
+    rel = np.stack([se2.compose_host(se2.inverse_host(odo[at]), o) for o in odo[at:]])
+    start = se2.compose_host(odo[at - 1], np.array([*step, np.deg2rad(turn_deg)]))
+    out = odo.copy()
+    out[at:] = [se2.compose_host(start, r) for r in rel]
+    return ScanSequence(seq.times, seq.scans, out, "rezeroed")
+
+
+def test_a_restart_the_step_test_cannot_see_is_found_by_the_scans():
+    rec = _drifting(seed=2, drift_xy=0.01, drift_yaw=0.5)
+    kf = W.keyframes(rec.seq.odometry)
+    at = int(kf[len(kf) // 2])
+    seq = _rezeroed(rec.seq, at)
+    kf2 = W.keyframes(seq.odometry)
+    assert W.odometry_segments(seq.odometry[kf2], seq.times[kf2])[-1] == 0  # unseen by steps
+    w = W.cut(seq)
+    k = int(np.flatnonzero(kf2 == at)[0])
+    np.testing.assert_array_equal(w.segments, (np.arange(len(kf2)) >= k).astype(int))
+    assert np.all(w.segments[w.bounds[:, 0]] == w.segments[w.bounds[:, 1]])  # none straddles
+    # the same walk without the restart is one segment, and its windows are the input's
+    plain = W.cut(rec.seq)
+    assert plain.segments[-1] == 0
+    off = W.cut(rec.seq, W.WindowParams(scan_match=ScanMatchParams(enabled=False)))
+    np.testing.assert_array_equal(plain.bounds, off.bounds)
+    # causal and chunk-free: a prefix has the same segments as the whole
+    short = W.cut(seq.subset(np.arange(at + 40)))
+    np.testing.assert_array_equal(short.segments, w.segments[: len(short.segments)])
+
+
 def test_disabled_matching_is_the_input_odometry_and_bad_params_are_named():
     rec = _drifting(seed=4)
     p = W.WindowParams(scan_match=ScanMatchParams(enabled=False))

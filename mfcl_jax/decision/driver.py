@@ -18,7 +18,6 @@ import jax
 import numpy as np
 import pandas as pd
 
-from mfcl_jax import windows as W
 from mfcl_jax.decision import policies
 from mfcl_jax.decision.evaluate import NO_RIVAL, batch_inputs, evaluate, policy_names, to_frame
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
@@ -128,7 +127,7 @@ def decide(
     var = policies.variants(ours)
     runs, stacked, var, n_bad = batch_inputs(cands, batch, stacked, var)
     R0, K0 = np.asarray(runs.window_mask).shape
-    runs, pieces = split_segments(runs, np.asarray(batch.runs.traj_t))
+    runs, pieces = split_segments(runs, np.asarray(batch.runs.traj_seg))
     rb = np.asarray(batch.run_building)[pieces[:, 0]]
     runs_per_call = max(1, min(runs_per_call, rb.shape[0]))
     maps = building_maps(floorplans, sorted(set(rb.tolist())), min_iou)
@@ -226,8 +225,9 @@ def _with_rivals(dec, runs, rb, floorplans, run_chunks, s0, v0, rp: RivalParams,
     return dec, runs
 
 
-def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
-    """Every odometry segment (``windows.odometry_segments``) of every run as a run of its own.
+def split_segments(runs, traj_seg) -> tuple[object, np.ndarray]:
+    """Every odometry segment (``traj_seg (R, T)``, ``Windows.segments``) of every run as a run
+    of its own.
 
     Poses before and after an odometry jump (a restart) are in incommensurable frames, so the
     layer starts over after one: the windows of a segment are decided from that segment's
@@ -238,13 +238,14 @@ def split_segments(runs, traj_t) -> tuple[object, np.ndarray]:
         first window, window count) per split run. Without a jump, ``runs`` unchanged.
     """
     wm, tm = np.asarray(runs.window_mask), np.asarray(runs.traj_mask)
-    ws, traj = np.asarray(runs.window_start), np.asarray(runs.traj)
+    ws = np.asarray(runs.window_start)
     R, K = wm.shape
     T = tm.shape[1]
     pieces, spans = [], []
     for r in range(R):
         nk, nt = int(wm[r].sum()), int(tm[r].sum())
-        seg = W.odometry_segments(traj[r, :nt], traj_t[r, :nt])
+        seg = np.asarray(traj_seg[r, :nt])
+        seg = seg - seg[0] if nt else seg
         if nk == 0 or nt == 0 or seg[-1] == 0:
             pieces.append((r, 0, nk))
             spans.append((0, T))

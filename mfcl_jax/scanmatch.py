@@ -232,12 +232,13 @@ def _step(th, carry, inp):
     pose, inl, fit = _icp(pred, scan, smask, *flat, th)
     mapped = jnp.sum(mmask) >= th["min_inliers"]
 
-    def moved(a, b):
+    def near(a, b):
+        """Whether pose ``a`` is within ``max_shift`` and ``max_turn`` of pose ``b``."""
         return (jnp.hypot(*(a[:2] - b[:2])) <= th["max_shift"]) & (
             jnp.abs(se2.angle_diff(a[2], b[2])) <= th["max_turn"]
         )
 
-    trusted = (inl >= th["min_inliers"]) & mapped & moved(pose, pred) & jnp.all(jnp.isfinite(pose))
+    trusted = (inl >= th["min_inliers"]) & mapped & near(pose, pred) & jnp.all(jnp.isfinite(pose))
     pose = jnp.where(trusted, pose, pred)
     # The jump test (step 5 of the module's doc), run only where the input's increment leaves
     # the scan fitting the local map poorly; ``lax.cond`` skips it everywhere else.
@@ -247,14 +248,14 @@ def _step(th, carry, inp):
         best_pose, best_fit = pred, inf
         for guess in (se2.compose(prev, prev_inc), prev):  # kept moving as it was; stood still
             p2, i2, f2 = _icp(guess, scan, smask, *flat, th)
-            ok = (i2 >= th["min_inliers"]) & moved(p2, guess) & jnp.all(jnp.isfinite(p2))
+            ok = (i2 >= th["min_inliers"]) & near(p2, guess) & jnp.all(jnp.isfinite(p2))
             take = ok & (f2 < best_fit)
             best_pose, best_fit = jnp.where(take, p2, best_pose), jnp.where(take, f2, best_fit)
         return best_pose, best_fit
 
     poor = valid & ~reset & mapped & (fit > th["jump_fit"])
     pose2, fit2 = jax.lax.cond(poor, alternatives, lambda _: (pred, inf), None)
-    jump = poor & ~moved(pose2, pose) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
+    jump = poor & ~near(pose2, pose) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
     start = reset | jump
     pose = jnp.where(start, odo, pose)
     mmask = jnp.where(start, False, mmask)
@@ -307,7 +308,8 @@ class Odometer:
     ``extend`` takes keyframes in order; the result for the first ``m`` keyframes never
     changes when more arrive, so the live path and the batch path agree. ``poses`` holds the
     refined poses so far; ``trusted`` whether each keyframe's match passed the inlier and
-    correction checks (such a match may still keep the prediction under ``min_gain``).
+    correction checks (such a match may still keep the prediction under ``min_gain``);
+    ``starts`` whether each keyframe starts an odometry segment (``segments``).
 
     Args:
         params: ``ScanMatchParams``.

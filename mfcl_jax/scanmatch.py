@@ -355,13 +355,15 @@ class Odometer:
         odometry = np.asarray(odometry, np.float64).reshape(-1, 3)
         segments = np.asarray(segments).reshape(-1)
         p = self.params
+        # Where the input's segment id changes (the first keyframe ever starts one).
+        first = [self._last_seg != segments[0]] if len(segments) else []
+        given = np.concatenate([first, segments[1:] != segments[:-1]]).astype(bool)
+        if len(segments):
+            self._last_seg = segments[-1]
         if not p.enabled:
-            first = [self._last_seg != segments[0]] if len(segments) else []
-            starts = np.concatenate([first, segments[1:] != segments[:-1]]).astype(bool)
             self.poses = np.concatenate([self.poses, odometry])
             self.trusted = np.concatenate([self.trusted, np.zeros(len(odometry), bool)])
-            self.starts = np.concatenate([self.starts, starts[: len(odometry)]])
-            self._last_seg = segments[-1] if len(segments) else self._last_seg
+            self.starts = np.concatenate([self.starts, given])
             return self.poses
         if self._origin is None and len(odometry):
             self._origin = np.array([*odometry[0, :2], 0.0])
@@ -377,17 +379,14 @@ class Odometer:
             O = np.zeros((p.chunk, 3), np.float32)
             O[:m] = local[sl]
             valid = np.arange(p.chunk) < m
-            seg = segments[sl]
-            starts = np.concatenate([[self._last_seg != seg[0]], seg[1:] != seg[:-1]])
             reset = np.zeros(p.chunk, bool)
-            reset[:m] = starts
+            reset[:m] = given[sl]
             self._carry, (pose, trusted, jump) = _chunk(
                 self._th, self._carry, S, M, O, valid, reset
             )
             out_p.append(np.asarray(pose, np.float64)[:m] + self._origin)
-            out_t.append(np.asarray(trusted)[:m] & ~starts)
-            out_s.append(starts | np.asarray(jump)[:m])
-            self._last_seg = seg[-1]
+            out_t.append(np.asarray(trusted)[:m] & ~given[sl])
+            out_s.append(given[sl] | np.asarray(jump)[:m])
         if out_p:
             self.poses = np.concatenate([self.poses, *out_p])
             self.trusted = np.concatenate([self.trusted, *out_t])

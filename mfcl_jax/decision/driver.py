@@ -244,8 +244,7 @@ def split_segments(runs, traj_seg) -> tuple[object, np.ndarray]:
     pieces, spans = [], []
     for r in range(R):
         nk, nt = int(wm[r].sum()), int(tm[r].sum())
-        seg = np.asarray(traj_seg[r, :nt])
-        seg = seg - seg[0] if nt else seg
+        seg = np.asarray(traj_seg[r, :nt])  # 0 at the run's start (Windows.segments)
         if nk == 0 or nt == 0 or seg[-1] == 0:
             pieces.append((r, 0, nk))
             spans.append((0, T))

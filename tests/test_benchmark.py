@@ -71,7 +71,7 @@ def test_small_benchmark_writes_every_table(small):
     out = root / "one"
     for name in ("runs.csv", "labels.csv", "families.md", "overall.md", "risk_coverage.csv",
                  "risk_coverage.png", "faults/restart.md", "faults/restart.png",
-                 "windows.csv.gz", "timings.md", "families/bays.png"):  # fmt: skip
+                 "windows.csv.gz", "timings.md", "families/bays.png", "margins.md"):  # fmt: skip
         assert (out / name).is_file(), name
     fam = tables["families"]
     assert set(fam["policy"]) == set(SMALL["policies"])
@@ -84,6 +84,34 @@ def test_small_benchmark_writes_every_table(small):
     rc = tables["risk_coverage"]
     assert (rc.groupby("policy")["set"].nunique() > 1).all()  # a curve, not a point
     assert rc["false_rate"].between(0, 1).all() and rc["coverage"].between(0, 1).all()
+
+
+def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
+    """Right COMMIT windows give the largest errors and share of the 1 m / 5 deg line; a window
+    past the line counts as wrong and is left out of the maxima; non-COMMIT windows and other
+    policies are ignored; fault rows are counted per (run, fault, level)."""
+    from mfcl_jax.bench.report import commit_margins
+
+    rows = [  # name, family, fault, level, policy, state, err_xy, err_yaw_deg
+        ("a/s0", "plain", None, None, "ours", "COMMIT", 0.10, 1.0),
+        ("a/s0", "plain", None, None, "ours", "COMMIT", 0.30, 4.0),  # 0.8 of the line
+        ("a/s0", "plain", None, None, "ours", "COMMIT", 1.50, 0.1),  # wrong
+        ("a/s0", "plain", None, None, "ours", "DEFER", 9.00, 90.0),  # not a commit
+        ("b/s0", "hall", None, None, "ours", "COMMIT", 0.60, 0.5),
+        ("b/s0", "hall", None, None, "paper", "COMMIT", 0.99, 0.5),  # another policy
+        ("a/s0", "plain", "drift", "0.01", "ours", "COMMIT", 0.20, 0.2),
+        ("a/s0", "plain", "drift", "0.02", "ours", "COMMIT", 0.20, 0.2),
+    ]
+    w = pd.DataFrame(rows, columns=["name", "family", "fault", "level", "policy", "state",
+                                    "err_xy", "err_yaw_deg"])  # fmt: skip
+    t = commit_margins(w).set_index("group")
+    assert list(t.index) == ["plain", "hall", "all nominal", "all fault rows"]
+    assert t.loc["plain", "commit_windows"] == 3 and t.loc["plain", "wrong"] == 1
+    assert t.loc["plain", "max_xy_m"] == pytest.approx(0.30)
+    assert t.loc["plain", "use"] == pytest.approx(0.8) and t.loc["plain", "over_half"] == 1
+    assert t.loc["hall", "use"] == pytest.approx(0.6)
+    assert t.loc["all nominal", "commit_windows"] == 4 and t.loc["all nominal", "runs"] == 2
+    assert t.loc["all fault rows", "runs"] == 2 and t.loc["all fault rows", "wrong"] == 0
 
 
 def test_merge_of_jobs_gives_the_same_tables(small, tmp_path):

@@ -20,7 +20,7 @@ from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.evaluate.tables import write_table
 from mfcl_jax.io.atomic import atomic_write
 
-__all__ = ["run_benchmark", "write_tables", "read_runs", "merge"]
+__all__ = ["run_benchmark", "write_tables", "write_margins", "read_runs", "merge"]
 
 
 def _groups(cfg: BenchmarkConfig):
@@ -64,6 +64,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     tm = pd.DataFrame([dict(stage=k, seconds=round(v, 2)) for k, v in col.timings.items()])
     write_table(tm, out, "timings")
     tables = write_tables(runs, out, cfg.policies, cfg.figures)
+    tables["margins"] = write_margins(out)
     if cfg.figures:
         _pictures(cfg, out)
     return tables
@@ -107,6 +108,19 @@ def _write_windows(scored: pd.DataFrame, labels, out: Path) -> None:
         out / "windows.csv.gz", index=False, float_format="%.4g",
         compression={"method": "gzip", "mtime": 0},
     )  # fmt: skip
+
+
+def write_margins(out) -> pd.DataFrame:
+    """``margins.csv/.md`` (``report.commit_margins``) from the folder's ``windows.csv.gz``."""
+    out = Path(out)
+    f = out / "windows.csv.gz"
+    if not f.is_file():
+        raise FileNotFoundError(f"margins: {f} not found (run the benchmark first)")
+    w = pd.read_csv(f, dtype={"fault": str, "level": str}, keep_default_na=False,
+                    na_values=[""])  # fmt: skip
+    tab = report.commit_margins(w)
+    write_table(tab, out, "margins")
+    return tab
 
 
 def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:

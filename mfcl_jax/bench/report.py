@@ -8,7 +8,11 @@ Per run and policy (threshold set ``DEFAULT_SET`` unless stated):
 * a CORRECT commit run: it committed and every COMMIT window is right;
 * coverage: correct commit runs / identifiable runs; abstention: runs without a commit /
   non-identifiable runs; rates carry Wilson 95 % intervals;
-* delay: first commit window minus the oracle window (identifiable runs committed correctly).
+* delay: first commit window minus the oracle window (identifiable runs committed correctly);
+* commit margins (``commit_margins``): how close the COMMIT windows came to the line between
+  a right and a false commit (``CORRECT_XY`` m, ``CORRECT_YAW_DEG``), per family. Zero false
+  commits on the benchmark say little about a building we have never seen if the right ones
+  passed at 0.9 of the line; this table says how much room there was.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import pandas as pd
 from mfcl_jax.bench.config import FAULTS
 from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
 from mfcl_jax.score import first_commits, wilson
+from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
 __all__ = [
     "run_table",
@@ -29,6 +34,7 @@ __all__ = [
     "risk_coverage",
     "fault_table",
     "first_false_level",
+    "commit_margins",
 ]
 
 
@@ -189,4 +195,44 @@ def first_false_level(runs: pd.DataFrame, policies) -> pd.DataFrame:
             bad = [str(lv) for lv in FAULTS[axis] if h[h["level"] == str(lv)]["any_false"].any()]
             row[pol] = bad[0] if bad else "none"
         rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def commit_margins(windows: pd.DataFrame, policy: str = "ours") -> pd.DataFrame:
+    """Per family (nominal runs), then all nominal runs and all fault rows: the COMMIT windows
+    of ``policy`` at the default thresholds and how close the right ones came to the line.
+
+    Args:
+        windows: the benchmark's per-window table (``windows.csv.gz``: ``name, family, fault,
+            policy, state, err_xy, err_yaw_deg``).
+        policy: the policy reported.
+
+    Returns:
+        One row per group: ``commit_windows``, ``wrong`` (COMMIT windows past the line),
+        ``max_xy_m`` and ``max_yaw_deg`` (largest error among the right ones), ``use`` (the
+        largest share of the line used by a right one: ``max(err_xy / CORRECT_XY, err_yaw /
+        CORRECT_YAW_DEG)``), ``over_half`` (right ones past half the line) and ``runs`` with a
+        commit.
+    """
+    w = windows[(windows["policy"] == policy) & (windows["state"] == "COMMIT")].copy()
+    w["fault"] = w["fault"].fillna("").astype(str)
+    w["use"] = np.maximum(w["err_xy"] / CORRECT_XY, w["err_yaw_deg"] / CORRECT_YAW_DEG)
+
+    def row(group: str, g: pd.DataFrame) -> dict:
+        right = g[g["use"] <= 1.0]
+        return dict(
+            group=group,
+            runs=len(g.drop_duplicates([c for c in ("name", "fault", "level") if c in g])),
+            commit_windows=len(g),
+            wrong=int((g["use"] > 1.0).sum()),
+            max_xy_m=float(right["err_xy"].max()) if len(right) else math.nan,
+            max_yaw_deg=float(right["err_yaw_deg"].max()) if len(right) else math.nan,
+            use=float(right["use"].max()) if len(right) else math.nan,
+            over_half=int((right["use"] > 0.5).sum()),
+        )
+
+    nom = w[w["fault"] == ""]
+    rows = [row(fam, g) for fam, g in nom.groupby("family", sort=False)]
+    rows.append(row("all nominal", nom))
+    rows.append(row("all fault rows", w[w["fault"] != ""]))
     return pd.DataFrame(rows)

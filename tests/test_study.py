@@ -1,4 +1,4 @@
-"""A reduced reproduction of the study (all scales and policies, one seed) into tmp_path.
+"""A reduced reproduction of the study (all scales and policies, two seeds) into tmp_path.
 
 Fails if a table's schema changes or one of the paper's findings breaks on our stand-ins.
 """

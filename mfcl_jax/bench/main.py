@@ -110,15 +110,20 @@ def _write_windows(scored: pd.DataFrame, labels, out: Path) -> None:
     )  # fmt: skip
 
 
+def _read_table(f: Path) -> pd.DataFrame:
+    """A benchmark CSV as written: fault and level stay strings ("0.01", never 0.01), and only
+    an empty cell is missing (a level named "none" stays a level)."""
+    return pd.read_csv(f, dtype={"fault": str, "level": str}, keep_default_na=False,
+                       na_values=[""])  # fmt: skip
+
+
 def write_margins(out) -> pd.DataFrame:
     """``margins.csv/.md`` (``report.commit_margins``) from the folder's ``windows.csv.gz``."""
     out = Path(out)
     f = out / "windows.csv.gz"
     if not f.is_file():
         raise FileNotFoundError(f"margins: {f} not found (run the benchmark first)")
-    w = pd.read_csv(f, dtype={"fault": str, "level": str}, keep_default_na=False,
-                    na_values=[""])  # fmt: skip
-    tab = report.commit_margins(w)
+    tab = report.commit_margins(_read_table(f))
     write_table(tab, out, "margins")
     return tab
 
@@ -167,8 +172,7 @@ def read_runs(job_dirs) -> pd.DataFrame:
         f = Path(d) / "runs.csv"
         if not f.is_file():
             raise FileNotFoundError(f"merge: {f} not found (did the job finish?)")
-        parts.append(pd.read_csv(f, dtype={"fault": str, "level": str}, keep_default_na=False,
-                                 na_values=[""]))  # fmt: skip
+        parts.append(_read_table(f))
     runs = pd.concat(parts, ignore_index=True)
     runs["fault"] = runs["fault"].fillna("")
     runs["level"] = runs["level"].fillna("")

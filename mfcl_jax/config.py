@@ -16,7 +16,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
 
-from mfcl_jax.decision.state import DecisionParams
+from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend.registry import FrontendParams
 from mfcl_jax.sim import SimParams
 from mfcl_jax.windows import WindowParams

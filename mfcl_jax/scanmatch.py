@@ -42,8 +42,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
+from mfcl_jax.sparse_cond import sparse_cond
 
-__all__ = ["ScanMatchParams", "Odometer", "scan_match", "thin_scan"]
+__all__ = ["ScanMatchParams", "Odometer", "extend_many", "scan_match", "thin_scan"]
 
 
 @dataclass(frozen=True)
@@ -155,14 +156,15 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
     Returns ``(pose (3,), inliers ())``."""
     big = jnp.asarray(1e6, mpts.dtype)
     mp = jnp.where(mmask[:, None], mpts, big)
-    m2 = jnp.sum(mp * mp, 1)
     info_prior = jnp.stack([1 / th["prior_xy"] ** 2] * 2 + [1 / th["prior_yaw"] ** 2])
     w_pt = 1 / th["point_std"] ** 2
 
     def nearest(pose):
         q = se2.apply(pose, scan)  # (P, 2)
-        # |q - m|^2 as a matrix product: the (P, Q) table is the kernel's whole cost.
-        d2 = jnp.sum(q * q, 1)[:, None] + m2[None, :] - 2 * q @ mp.T  # (P, Q)
+        # The (P, Q) table is the kernel's whole cost. Differences, not the matrix-product
+        # expansion: exact to the last bit whatever the batch (a product's rounding follows
+        # the batch size's kernel), and no cancellation.
+        d2 = (q[:, None, 0] - mp[None, :, 0]) ** 2 + (q[:, None, 1] - mp[None, :, 1]) ** 2
         j = jnp.argmin(d2, axis=1)
         m = mp[j]
         return q, m, mnrm[j], jnp.sum((q - m) ** 2, axis=1)
@@ -223,6 +225,25 @@ def _icp(pred, scan, smask, mpts, mnrm, mmask, th):
     return jnp.where(better, pose, pred), inliers, jnp.where(better, after, before)
 
 
+def _alternatives(ops):
+    """The jump test's two matches that ignore the input (module doc, step 5)."""
+    prev, prev_inc, pred, scan, smask, flat, th = ops
+    best_pose, best_fit = pred, jnp.asarray(jnp.inf, pred.dtype)
+    for guess in (se2.compose(prev, prev_inc), prev):  # kept moving as it was; stood still
+        p2, i2, f2 = _icp(guess, scan, smask, *flat, th)
+        ok = (i2 >= th["min_inliers"]) & _near(p2, guess, th) & jnp.all(jnp.isfinite(p2))
+        take = ok & (f2 < best_fit)
+        best_pose, best_fit = jnp.where(take, p2, best_pose), jnp.where(take, f2, best_fit)
+    return best_pose, best_fit
+
+
+def _near(a, b, th):
+    """Whether pose ``a`` is within ``max_shift`` and ``max_turn`` of pose ``b``."""
+    return (jnp.hypot(*(a[:2] - b[:2])) <= th["max_shift"]) & (
+        jnp.abs(se2.angle_diff(a[2], b[2])) <= th["max_turn"]
+    )
+
+
 def _step(th, carry, inp):
     prev, prev_odo, prev_inc, mpts, mnrm, mmask, slot = carry
     scan, smask, odo, valid, reset = inp
@@ -231,31 +252,15 @@ def _step(th, carry, inp):
     flat = (mpts.reshape(K * P, 2), mnrm.reshape(K * P, 2), mmask.reshape(K * P))
     pose, inl, fit = _icp(pred, scan, smask, *flat, th)
     mapped = jnp.sum(mmask) >= th["min_inliers"]
-
-    def near(a, b):
-        """Whether pose ``a`` is within ``max_shift`` and ``max_turn`` of pose ``b``."""
-        return (jnp.hypot(*(a[:2] - b[:2])) <= th["max_shift"]) & (
-            jnp.abs(se2.angle_diff(a[2], b[2])) <= th["max_turn"]
-        )
-
-    trusted = (inl >= th["min_inliers"]) & mapped & near(pose, pred) & jnp.all(jnp.isfinite(pose))
-    pose = jnp.where(trusted, pose, pred)
+    ok = (inl >= th["min_inliers"]) & mapped & _near(pose, pred, th) & jnp.all(jnp.isfinite(pose))
+    pose = jnp.where(ok, pose, pred)
     # The jump test (step 5 of the module's doc), run only where the input's increment leaves
-    # the scan fitting the local map poorly; ``lax.cond`` skips it everywhere else.
-    inf = jnp.asarray(jnp.inf, fit.dtype)
-
-    def alternatives(_):
-        best_pose, best_fit = pred, inf
-        for guess in (se2.compose(prev, prev_inc), prev):  # kept moving as it was; stood still
-            p2, i2, f2 = _icp(guess, scan, smask, *flat, th)
-            ok = (i2 >= th["min_inliers"]) & near(p2, guess) & jnp.all(jnp.isfinite(p2))
-            take = ok & (f2 < best_fit)
-            best_pose, best_fit = jnp.where(take, p2, best_pose), jnp.where(take, f2, best_fit)
-        return best_pose, best_fit
-
+    # the scan fitting the local map poorly (``sparse_cond``: a real branch, also when the
+    # odometry of many recordings is refined at once).
     poor = valid & ~reset & mapped & (fit > th["jump_fit"])
-    pose2, fit2 = jax.lax.cond(poor, alternatives, lambda _: (pred, inf), None)
-    jump = poor & ~near(pose2, pose) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
+    alt = sparse_cond(poor, _alternatives, (prev, prev_inc, pred, scan, smask, flat, th))
+    pose2, fit2 = jnp.where(poor, alt[0], pred), jnp.where(poor, alt[1], jnp.inf)
+    jump = poor & ~_near(pose2, pose, th) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
     start = reset | jump
     pose = jnp.where(start, odo, pose)
     mmask = jnp.where(start, False, mmask)
@@ -272,13 +277,16 @@ def _step(th, carry, inp):
         jnp.where(valid, new_mask, mmask),
         jnp.where(valid, (slot + 1) % K, slot),
     )
-    return out, (pose, trusted, jump)
+    return out, (pose, ok, jump)
 
 
 @jax.jit
 def _chunk(th, carry, scans, smask, odo, valid, reset):
-    """``lax.scan`` of ``_step`` over one chunk of keyframes."""
-    return jax.lax.scan(partial(_step, th), carry, (scans, smask, odo, valid, reset))
+    """``lax.scan`` of ``_step`` over one chunk of keyframes of every recording at once
+    (leaves ``(R, chunk, ...)``; the carry ``(R, ...)``)."""
+    return jax.vmap(lambda c, *x: jax.lax.scan(partial(_step, th), c, x))(
+        carry, scans, smask, odo, valid, reset
+    )
 
 
 def _thresholds(p: ScanMatchParams) -> dict:
@@ -352,46 +360,75 @@ class Odometer:
             segments: ``(m,)`` their odometry segment ids (``windows.odometry_segments`` of
                 the whole keyframe sequence): a change of id starts over.
         """
-        odometry = np.asarray(odometry, np.float64).reshape(-1, 3)
-        segments = np.asarray(segments).reshape(-1)
-        p = self.params
-        # Where the input's segment id changes (the first keyframe ever starts one).
+        return extend_many([self], [scans], [odometry], [segments])[0]
+
+    def _given(self, odometry, segments):
+        """Where the input's segment id changes (the first keyframe ever starts one)."""
         first = [self._last_seg != segments[0]] if len(segments) else []
         given = np.concatenate([first, segments[1:] != segments[:-1]]).astype(bool)
         if len(segments):
             self._last_seg = segments[-1]
-        if not p.enabled:
-            self.poses = np.concatenate([self.poses, odometry])
-            self.trusted = np.concatenate([self.trusted, np.zeros(len(odometry), bool)])
-            self.starts = np.concatenate([self.starts, given])
-            return self.poses
         if self._origin is None and len(odometry):
             self._origin = np.array([*odometry[0, :2], 0.0])
-        local = odometry - self._origin if len(odometry) else odometry
-        out_p, out_t, out_s = [], [], []
-        for i0 in range(0, len(odometry), p.chunk):
-            sl = slice(i0, min(i0 + p.chunk, len(odometry)))
-            m = sl.stop - sl.start
-            S = np.zeros((p.chunk, p.points, 2), np.float32)
-            M = np.zeros((p.chunk, p.points), bool)
-            for j, s in enumerate(scans[sl]):
-                S[j], M[j] = thin_scan(s, p)
-            O = np.zeros((p.chunk, 3), np.float32)
-            O[:m] = local[sl]
-            valid = np.arange(p.chunk) < m
-            reset = np.zeros(p.chunk, bool)
-            reset[:m] = given[sl]
-            self._carry, (pose, trusted, jump) = _chunk(
-                self._th, self._carry, S, M, O, valid, reset
-            )
-            out_p.append(np.asarray(pose, np.float64)[:m] + self._origin)
-            out_t.append(np.asarray(trusted)[:m] & ~given[sl])
-            out_s.append(given[sl] | np.asarray(jump)[:m])
-        if out_p:
-            self.poses = np.concatenate([self.poses, *out_p])
-            self.trusted = np.concatenate([self.trusted, *out_t])
-            self.starts = np.concatenate([self.starts, *out_s])
+        return given
+
+    def _append(self, poses, trusted, starts):
+        self.poses = np.concatenate([self.poses, poses])
+        self.trusted = np.concatenate([self.trusted, trusted])
+        self.starts = np.concatenate([self.starts, starts])
         return self.poses
+
+
+def extend_many(odometers, scans, odometry, segments) -> list[np.ndarray]:
+    """``Odometer.extend`` of several odometers (one per recording) in one batched kernel.
+
+    The recordings' keyframes are fed chunk by chunk (``chunk`` keyframes of every
+    recording per call, shorter ones padded), so one compilation serves any length; each
+    recording's poses are exactly what its own ``extend`` would give.
+
+    Returns:
+        The refined poses ``(M_i, 3)`` of all keyframes so far, per odometer.
+    """
+    p = odometers[0].params
+    odometry = [np.asarray(o, np.float64).reshape(-1, 3) for o in odometry]
+    segments = [np.asarray(s).reshape(-1) for s in segments]
+    given = [od._given(o, s) for od, o, s in zip(odometers, odometry, segments, strict=True)]
+    if not p.enabled:
+        return [od._append(o, np.zeros(len(o), bool), g)
+                for od, o, g in zip(odometers, odometry, given, strict=True)]  # fmt: skip
+    n = len(odometers)
+    longest = max((len(o) for o in odometry), default=0)
+    carry = jax.tree.map(lambda *xs: np.stack(xs), *[od._carry for od in odometers])
+    out = [([], [], []) for _ in range(n)]
+    for i0 in range(0, longest, p.chunk):
+        S = np.zeros((n, p.chunk, p.points, 2), np.float32)
+        M = np.zeros((n, p.chunk, p.points), bool)
+        O = np.zeros((n, p.chunk, 3), np.float32)
+        valid = np.zeros((n, p.chunk), bool)
+        reset = np.zeros((n, p.chunk), bool)
+        for r, od in enumerate(odometers):
+            sl = slice(i0, min(i0 + p.chunk, len(odometry[r])))
+            m = max(sl.stop - sl.start, 0)
+            for j, sc in enumerate(scans[r][sl]):
+                S[r, j], M[r, j] = thin_scan(sc, p)
+            if m:
+                O[r, :m] = odometry[r][sl] - od._origin
+            valid[r, :m] = True
+            reset[r, :m] = given[r][sl]
+        carry, (pose, trusted, jump) = _chunk(odometers[0]._th, carry, S, M, O, valid, reset)
+        pose, trusted, jump = (np.asarray(a) for a in (pose, trusted, jump))
+        for r, od in enumerate(odometers):
+            sl = slice(i0, min(i0 + p.chunk, len(odometry[r])))
+            m = max(sl.stop - sl.start, 0)
+            if m:
+                out[r][0].append(pose[r, :m].astype(np.float64) + od._origin)
+                out[r][1].append(trusted[r, :m] & ~given[r][sl])
+                out[r][2].append(given[r][sl] | jump[r, :m])
+    for r, od in enumerate(odometers):
+        od._carry = jax.tree.map(lambda a, r=r: np.asarray(a)[r], carry)
+        if out[r][0]:
+            od._append(*(np.concatenate(x) for x in out[r]))
+    return [od.poses for od in odometers]
 
 
 def scan_match(scans, odometry, segments, params: ScanMatchParams | None = None) -> np.ndarray:

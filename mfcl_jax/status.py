@@ -36,7 +36,7 @@ STATE_TEXT = {
     "DEFER": "not enough evidence yet; the reason says what is missing. Keep moving.",
 }
 
-# Keys: ``decision.state.REASONS`` (a test keeps them in step). Value: (short phrase for a
+# Keys: ``decision.outcome.REASONS`` (a test keeps them in step). Value: (short phrase for a
 # status line, one plain sentence for the help).
 REASON_TEXT = {
     "unsaturated": (

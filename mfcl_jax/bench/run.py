@@ -21,7 +21,7 @@ import pandas as pd
 
 from mfcl_jax import windows as W
 from mfcl_jax.bench.config import BenchmarkConfig, validate
-from mfcl_jax.decision.state import DecisionParams
+from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.sources import Recording, ScanSequence
 
 __all__ = ["KNOB_SETS", "DEFAULT_SET", "Collected", "collect", "decide_and_score"]
@@ -202,7 +202,7 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
         One row per run x window x set x policy with the scorer's columns and the run's meta.
     """
     from mfcl_jax.batch import Candidates
-    from mfcl_jax.decision.driver import decide
+    from mfcl_jax.decision.runs import decide
     from mfcl_jax.score import score_batch
 
     batch = W.concat(col.batches)
@@ -215,7 +215,6 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
                        primary_set=DEFAULT_SET)  # fmt: skip
     col.tick("decision compile", tm["compile_s"])
     col.tick("decision run", tm["run_s"])
-    col.tick("rival search", tm.get("search_s", 0.0))
     parts = [frame, *col.mcl]
     frame = pd.concat(parts, ignore_index=True) if col.mcl else frame
     # Fault runs enter only the fault tables, which read the default thresholds: the other
@@ -223,7 +222,6 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     fault = np.asarray([bool(r.meta.get("fault", "")) for r in col.recordings])
     frame = frame[~fault[frame["run"].to_numpy()] | (frame["set"].to_numpy() == DEFAULT_SET)]
     scored = score_batch(frame, batch, col.recordings, rooms=False)
-    col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"]
-             - tm.get("search_s", 0.0))  # fmt: skip
+    col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"])
     meta = pd.DataFrame([dict(run=i, name=r.name, **r.meta) for i, r in enumerate(col.recordings)])
     return scored.merge(meta, on="run", how="left")

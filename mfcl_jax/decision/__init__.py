@@ -1,70 +1,50 @@
 """Decision layer: anchors, feasibility gate, top-1 consensus, lattice, building symmetries,
-alias probe, states."""
+alias probe, certification, commit machine; one pure ``update`` per window (``layer``)."""
 
-from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
-from mfcl_jax.decision.consensus import champions, group, leader_groups
-from mfcl_jax.decision.evaluate import (
-    RunInputs,
-    batch_inputs,
-    evaluate,
-    evaluate_run,
-    policy_names,
-    to_frame,
+from mfcl_jax.decision.anchors import candidate_anchors, sanitize
+from mfcl_jax.decision.frame import to_frame
+from mfcl_jax.decision.history import Caps
+from mfcl_jax.decision.lanes import (
+    BASELINES,
+    OURS_VARIANTS,
+    STRICT_IOU,
+    Lanes,
+    LaneSpec,
+    make_lanes,
 )
-from mfcl_jax.decision.gate import consistency_at, prefix_table, rooms_spanned
-from mfcl_jax.decision.lattice import KIND_NAMES, detect
-from mfcl_jax.decision.maps import DecisionMaps, decision_maps, pad_maps
-from mfcl_jax.decision.policies import BASELINES, OURS_VARIANTS, Variants, baselines, variants
-from mfcl_jax.decision.probe import probe
-from mfcl_jax.decision.state import (
-    AMBIGUOUS,
-    COMMIT,
-    DEFER,
-    REASONS,
-    STATE_NAMES,
-    DecisionParams,
-    Decisions,
-    decide_prefix,
-)
-from mfcl_jax.decision.stream import Decision, SelectiveInitializer
-from mfcl_jax.decision.symmetry import rotational_motions
+from mfcl_jax.decision.layer import LayerState, WindowEvidence, advance, init, update
+from mfcl_jax.decision.maps import DecisionMaps, decision_maps
+from mfcl_jax.decision.outcome import AMBIGUOUS, COMMIT, DEFER, REASONS, STATE_NAMES, Decision
+from mfcl_jax.decision.params import KNOBS, DecisionParams
+from mfcl_jax.decision.runs import RunInputs, decide_runs, run_inputs
 
 __all__ = [
     "AMBIGUOUS",
     "BASELINES",
     "COMMIT",
     "DEFER",
-    "KIND_NAMES",
+    "KNOBS",
     "OURS_VARIANTS",
     "REASONS",
     "STATE_NAMES",
+    "STRICT_IOU",
+    "Caps",
     "Decision",
-    "DecisionParams",
-    "Decisions",
     "DecisionMaps",
-    "SelectiveInitializer",
-    "Variants",
-    "baselines",
-    "candidate_anchors",
-    "champions",
-    "consistency_at",
-    "decide_prefix",
-    "detect",
-    "evaluate",
-    "batch_inputs",
+    "DecisionParams",
+    "LaneSpec",
+    "Lanes",
+    "LayerState",
     "RunInputs",
-    "evaluate_run",
+    "WindowEvidence",
+    "advance",
+    "candidate_anchors",
+    "decide_runs",
     "decision_maps",
-    "group",
-    "leader_groups",
-    "pad_maps",
-    "per_run",
-    "policy_names",
-    "prefix_table",
-    "probe",
-    "rooms_spanned",
-    "rotational_motions",
+    "init",
+    "make_lanes",
+    "run_inputs",
     "sanitize",
     "to_frame",
-    "variants",
+    "update",
 ]

@@ -90,6 +90,7 @@ class CertStats:
     max_adv: jax.Array  # (C,) largest  s(T*) - s(C) over the windows used and their blocks
     min_adv: jax.Array  # (C,) smallest s(T*) - s(C)
     n_windows: jax.Array  # () windows used
+    ran: jax.Array  # () bool: computed (False: skipped, nothing certified)
 
 
 jax.tree_util.register_dataclass(
@@ -155,6 +156,17 @@ def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visibl
     return anchors, ok
 
 
+def _moves(steps) -> tuple:
+    """The refinement as a table: per step the axis, the signed step and whether it starts a
+    new axis (both signs of an axis are tried from the same centre)."""
+    rows = [(axis, sign * st, sign > 0)
+            for st_xy, st_th in steps
+            for axis, st in ((0, st_xy), (1, st_xy), (2, st_th))
+            for sign in (1.0, -1.0)]  # fmt: skip
+    axis, step, first = zip(*rows, strict=True)
+    return jnp.asarray(axis, jnp.int32), jnp.asarray(step, jnp.float32), jnp.asarray(first)
+
+
 def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=REFINE,
                    n_blocks: int = CERT_BLOCKS):  # fmt: skip
     """Verification score of each window (rows) under each pose ``(W, C, 3)``, each pose at
@@ -165,12 +177,10 @@ def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=
         ``(scores (W, C), block_scores (W, C, n_blocks))``: the latter at the fitted poses,
         per contiguous block of each window's points (``verify.block_scores``).
     """
+    axis, step, first = _moves(steps)
 
     def one_window(pose_c, p, o, m):
         q, q_ok = verify.free_samples(p, o, m, n_free, 0.3)
-
-        def terms(y):
-            return verify.point_terms(y, p, q, maps.origin, maps.res, maps.sdf4, maps.pen4, sigma)
 
         def one(y):
             return verify.score_fields(
@@ -178,59 +188,96 @@ def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=
             )
 
         def blocks(y):
-            hit, pen = terms(y)
+            hit, pen = verify.point_terms(
+                y, p, q, maps.origin, maps.res, maps.sdf4, maps.pen4, sigma
+            )
             return verify.block_scores(hit, pen, m, q_ok, n_blocks, lam)
 
+        def body(carry, mv):
+            y, best, centre = carry
+            ax, st, new_axis = mv
+            centre = jnp.where(new_axis, y, centre)
+            move = jnp.zeros(3, y.dtype).at[ax].set(st)
+            cand = se2.compose(centre, move[None])
+            sc = jax.vmap(one)(cand)
+            better = sc > best
+            return (jnp.where(better[:, None], cand, y), jnp.where(better, sc, best), centre), None
+
         y = pose_c  # (C, 3)
-        best = jax.vmap(one)(y)
-        for st_xy, st_th in steps:
-            for axis, st in ((0, st_xy), (1, st_xy), (2, st_th)):
-                centre = y
-                for sign in (1.0, -1.0):
-                    move = jnp.zeros(3, y.dtype).at[axis].set(sign * st)
-                    cand = se2.compose(centre, move[None])
-                    sc = jax.vmap(one)(cand)
-                    better = sc > best
-                    best = jnp.where(better, sc, best)
-                    y = jnp.where(better[:, None], cand, y)
+        (y, best, _), _ = jax.lax.scan(body, (y, jax.vmap(one)(y), y), (axis, step, first))
         return best, jax.vmap(blocks)(y)
 
     return jax.vmap(one_window)(poses, pts, org, pmask)
 
 
+CHUNK = 16  # competitors scored together in one window
+
+
 def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int = 12):
-    """``CertStats`` of the competitors of ``T*`` at prefix ``k``.
+    """``CertStats`` of the competitors of ``T*`` at the newest window ``k``.
+
+    Only what counts is scored: the windows of the scan-disjoint chain (at most ``n_slots``)
+    and the competitors with ``comp_ok``, in chunks of ``CHUNK`` (loops whose trip counts are
+    the chain's length and the competitors' number: the certification runs unbatched, inside
+    ``sparse_cond``, so it pays for what the window has, not for its capacities).
 
     Args:
-        k: ``()`` prefix; t_star: ``(3,)``; comp: ``(C, 3)`` with ``comp_ok (C,)``.
+        k: ``()`` newest row; t_star: ``(3,)``; comp: ``(C, 3)`` with ``comp_ok (C,)``.
         X: ``(K, 3)`` odometry pose of each window's last scan.
         evidence: ``(points (K, P, 2), origins (K, P, 2), mask (K, P))`` per window, in the
             window's frame.
         bounds: ``(start (K,), end (K,))``; maps: ``DecisionMaps``; p: ``DecisionParams``.
-        n_slots: static number of disjoint windows scored.
+        n_slots: static number of disjoint windows scored at most.
     """
     pts, org, pmask = evidence
     start, end = bounds
     has = jnp.any(pmask, axis=1) & (jnp.arange(start.shape[0]) <= k)
-    idx, ok = chain(k, start, end, has, n_slots)
-    Xw = X[idx]  # (W, 3)
-    anchors = jnp.concatenate([t_star[None], comp], axis=0)  # (1 + C, 3)
-    poses = se2.compose(anchors[None, :, :], Xw[:, None, :])  # (W, 1 + C, 3)
-    s, sb = _window_scores(poses, pts[idx], org[idx], pmask[idx], maps, p.cert_sigma, 1.0,
-                           FREE_PER_RAY)  # fmt: skip
-    adv = s[:, :1] - s[:, 1:]  # (W, C)
+    idx, ok = chain(k, start, end, has, n_slots)  # the chain first
+    n_win = jnp.sum(ok)
+    n_c = comp.shape[0]
+    n_pad = -(-n_c // CHUNK) * CHUNK
+    order = jnp.argsort(~comp_ok, stable=True)  # competitors that count first
+    order = jnp.concatenate([order, jnp.full(n_pad - n_c, order[0])])
+    n_chunks = (jnp.sum(comp_ok) + CHUNK - 1) // CHUNK
     # a block's advantage at equal confidence with a whole window (module docstring)
-    scale = math.sqrt(sb.shape[2] * MARGIN_POINTS / pts.shape[1])
-    adv_block = jnp.max(sb[:, :1, :] - sb[:, 1:, :], axis=2) / scale  # (W, C)
-    contra = jnp.maximum(adv, adv_block)
-    max_adv = jnp.max(jnp.where(ok[:, None], contra, -jnp.inf), axis=0)
-    min_adv = jnp.min(jnp.where(ok[:, None], adv, jnp.inf), axis=0)
+    scale = math.sqrt(CERT_BLOCKS * MARGIN_POINTS / pts.shape[1])
+
+    def scores(w, anchors):
+        poses = se2.compose(anchors, X[w][None])[None]  # (1, n, 3)
+        s, sb = _window_scores(poses, pts[w][None], org[w][None], pmask[w][None], maps,
+                               p.cert_sigma, 1.0, FREE_PER_RAY)  # fmt: skip
+        return s[0], sb[0]
+
+    def window(i, acc):
+        w = idx[i]
+        s_t, sb_t = scores(w, t_star[None])
+
+        def chunk(j, acc):
+            hi, lo = acc
+            sel = jax.lax.dynamic_slice(order, (j * CHUNK,), (CHUNK,))
+            s, sb = scores(w, comp[sel])
+            adv = s_t[0] - s
+            contra = jnp.maximum(adv, jnp.max(sb_t[:1] - sb, axis=1) / scale)
+            at = (j * CHUNK,)
+            hi = jax.lax.dynamic_update_slice(
+                hi, jnp.maximum(jax.lax.dynamic_slice(hi, at, (CHUNK,)), contra), at)
+            lo = jax.lax.dynamic_update_slice(
+                lo, jnp.minimum(jax.lax.dynamic_slice(lo, at, (CHUNK,)), adv), at)
+            return hi, lo
+
+        return jax.lax.fori_loop(0, n_chunks, chunk, acc)
+
+    acc = (jnp.full(n_pad, -jnp.inf), jnp.full(n_pad, jnp.inf))
+    hi, lo = jax.lax.fori_loop(0, n_win, window, acc)
+    max_adv = jnp.full(n_c, -jnp.inf).at[order[:n_c]].set(hi[:n_c])
+    min_adv = jnp.full(n_c, jnp.inf).at[order[:n_c]].set(lo[:n_c])
+    anchors = jnp.concatenate([t_star[None], comp], axis=0)
     here = se2.compose(anchors, X[k])
     dxy, dth = se2.distance_pair(here[1:], here[0])
     distinct = (dxy > CORRECT[0]) | (dth > CORRECT[1])
     # without evidence nothing is ruled out: every distinct competitor stays live
     valid = comp_ok & distinct
-    return CertStats(comp, valid, max_adv, min_adv, jnp.sum(ok).astype(jnp.int32))
+    return CertStats(comp, valid, max_adv, min_adv, n_win.astype(jnp.int32), jnp.bool_(True))
 
 
 def relation(t_star, c):

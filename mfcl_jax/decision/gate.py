@@ -20,12 +20,14 @@ Structural consistency over the samples ``t <= end`` of a prefix:
   iff ``c >= tau_c`` and never ranks: callers only
   compare ``c`` with thresholds.
 
-Every statistic is an integer count accumulated along the trajectory, so the table of all
-prefixes is one cumulative sum per anchor (``prefix_table``) and the
-single-prefix evaluation (``consistency_at``) gives bit-identical numbers.
+Every statistic is an integer count accumulated along the trajectory, so a walk (``Walk``: the
+counts and the last node visited) is extended by new samples (``extend_walk``) and gives
+the same integers as walking the whole trajectory at once.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -34,12 +36,11 @@ from mfcl_jax.decision.maps import DOOR, OUTSIDE, DecisionMaps
 
 __all__ = [
     "labels",
-    "events",
-    "walk_counts",
     "consistency_from_counts",
-    "prefix_table",
-    "consistency_at",
-    "rooms_spanned",
+    "Walk",
+    "start_walk",
+    "extend_walk",
+    "walk_labels",
 ]
 
 ILLEGAL_FACTOR = 0.25
@@ -72,50 +73,45 @@ def labels(maps: DecisionMaps, H, traj):
     return jnp.where(ok, val, OUTSIDE)
 
 
-def events(maps: DecisionMaps, H, traj, valid):
-    """Per-sample gate events of trajectories mapped by anchors.
-
-    Args:
-        maps: ``DecisionMaps``.
-        H: ``(..., 3)`` anchors.
-        traj: ``(T, 3)`` odometry poses in L.
-        valid: ``(T,)`` bool samples to use.
-
-    Returns:
-        ``(label, valid, free, trans, ok)``, each ``(..., T)``: cell label, sample validity,
-        free-space sample, node change, node change along a graph edge.
-    """
-    label = labels(maps, H, traj)
-    valid = jnp.broadcast_to(jnp.asarray(valid, bool), label.shape)
-    n_node = maps.adjacency.shape[-1]
-    n_out = n_node - 1
-    is_node = (label >= 0) | (label == OUTSIDE)
-    node = jnp.where(label >= 0, label, n_out)
-    t = jnp.arange(label.shape[-1], dtype=jnp.int32)
-    last = jax.lax.cummax(jnp.where(valid & is_node, t, -1), axis=label.ndim - 1)
-    prev = jnp.concatenate([jnp.full_like(last[..., :1], -1), last[..., :-1]], axis=-1)
-    prev_node = jnp.take_along_axis(node, jnp.maximum(prev, 0), axis=-1)
-    trans = valid & is_node & (prev >= 0) & (prev_node != node)
-    adj = maps.adjacency.reshape(-1).at[prev_node * n_node + node].get(mode="promise_in_bounds")
-    ok = trans & adj
-    free = valid & ((label >= 0) | (label == DOOR))
-    return label, valid, free, trans, ok
+def consistency_from_counts(n_valid, n_free, n_trans, n_ok):
+    """``c = (n_free / n_valid) * ILLEGAL_FACTOR^(n_trans - n_ok)``; 0 without samples."""
+    f = n_free.astype(jnp.float32) / jnp.maximum(n_valid, 1).astype(jnp.float32)
+    v = jnp.power(jnp.float32(ILLEGAL_FACTOR), (n_trans - n_ok).astype(jnp.float32))
+    return jnp.where(n_valid > 0, f * v, jnp.float32(0.0))
 
 
-def walk_counts(maps: DecisionMaps, label, valid, keep_all: bool = False):
-    """Running counts ``(n_valid, n_free, n_trans, n_ok)`` of the walk through ``label``.
+@dataclass(frozen=True)
+class Walk:
+    """What the gate remembers of a walk mapped by an anchor: the running counts and the last
+    node visited, so that new samples extend it (leaves share the anchors' leading axes)."""
 
-    The same statistics as ``events`` summed over ``t``, accumulated by one sequential pass
-    over the samples (``lax.scan``, vectorised over the anchors): on a CPU this is several
-    times cheaper than the log-depth cumulative max / sums it replaces.
+    counts: jax.Array  # (..., 4) int32 n_valid, n_free, n_trans, n_ok
+    prev: jax.Array  # (...,) int32 last node visited, -1 before the first
 
-    Args:
-        maps: ``DecisionMaps``.
-        label: ``(..., T)`` labels (``labels``); valid: ``(T,)`` or ``(..., T)`` bool.
-        keep_all: return the counts after every sample instead of after the last one.
+    def consistency(self):
+        c = self.counts
+        return consistency_from_counts(c[..., 0], c[..., 1], c[..., 2], c[..., 3])
 
-    Returns:
-        ``(4, ...)`` int32 counts, or ``(T, 4, ...)`` with ``keep_all``.
+
+jax.tree_util.register_dataclass(Walk, data_fields=["counts", "prev"], meta_fields=[])
+
+
+def start_walk(shape) -> Walk:
+    return Walk(jnp.zeros((*shape, 4), jnp.int32), jnp.full(shape, -1, jnp.int32))
+
+
+def extend_walk(maps: DecisionMaps, H, traj, valid, walk: Walk) -> Walk:
+    """``walk`` extended by the samples ``traj (T, 3)`` (``valid (T,)``) mapped by ``H (..., 3)``."""
+    return walk_labels(maps, labels(maps, H, traj), valid, walk)
+
+
+def walk_labels(maps: DecisionMaps, label, valid, walk: Walk) -> Walk:
+    """``walk`` extended by samples with labels ``label (..., T)``.
+
+    Nodes are room cells and ``OUTSIDE``; door and wall cells between two nodes are skipped;
+    a change of node is a transition, legal along a graph edge. One sequential pass over the
+    samples (``lax.scan``, vectorised over the anchors): on a CPU several times cheaper than
+    a log-depth cumulative maximum.
     """
     n_node = maps.adjacency.shape[-1]
     adj = maps.adjacency.reshape(-1)
@@ -130,53 +126,8 @@ def walk_counts(maps: DecisionMaps, label, valid, keep_all: bool = False):
         trans = v & is_node & (prev >= 0) & (prev != node)
         edge = adj.at[jnp.maximum(prev, 0) * n_node + node].get(mode="promise_in_bounds")
         free = v & ((lab >= 0) | (lab == DOOR))
-        c = c + jnp.stack([v, free, trans, trans & edge]).astype(jnp.int32)
-        prev = jnp.where(v & is_node, node, prev)
-        return (prev, c), (c if keep_all else None)
+        c = c + jnp.stack([v, free, trans, trans & edge], axis=-1).astype(jnp.int32)
+        return (jnp.where(v & is_node, node, prev), c), None
 
-    shape = label.shape[:-1]
-    init = (jnp.full(shape, -1, jnp.int32), jnp.zeros((4, *shape), jnp.int32))
-    (_, c), cs = jax.lax.scan(step, init, (lab_t, val_t))
-    return cs if keep_all else c
-
-
-def consistency_from_counts(n_valid, n_free, n_trans, n_ok):
-    """``c = (n_free / n_valid) * ILLEGAL_FACTOR^(n_trans - n_ok)``; 0 without samples."""
-    f = n_free.astype(jnp.float32) / jnp.maximum(n_valid, 1).astype(jnp.float32)
-    v = jnp.power(jnp.float32(ILLEGAL_FACTOR), (n_trans - n_ok).astype(jnp.float32))
-    return jnp.where(n_valid > 0, f * v, jnp.float32(0.0))
-
-
-def prefix_table(maps: DecisionMaps, H, traj, traj_mask, window_end):
-    """Consistency of every anchor at every prefix, via cumulative counts.
-
-    Args:
-        maps: ``DecisionMaps``.
-        H: ``(..., 3)`` anchors, e.g. ``(K, J, 3)``.
-        traj: ``(T, 3)``; traj_mask: ``(T,)``.
-        window_end: ``(Kp,)`` int32 last sample index of each prefix.
-
-    Returns:
-        ``(..., Kp)`` float32 consistency.
-    """
-    label = labels(maps, H, traj)
-    cs = walk_counts(maps, label, traj_mask, keep_all=True)  # (T, 4, ...)
-    end = jnp.clip(jnp.asarray(window_end), 0, label.shape[-1] - 1)
-    counts = jnp.moveaxis(cs[end], 0, -1)  # (4, ..., Kp)
-    return consistency_from_counts(*counts)
-
-
-def consistency_at(maps: DecisionMaps, H, traj, traj_mask, end):
-    """Consistency of anchors ``H (..., 3)`` on the samples ``t <= end``; equals the table."""
-    t = jnp.arange(jnp.asarray(traj).shape[0])
-    valid = jnp.asarray(traj_mask, bool) & (t <= end)
-    return consistency_from_counts(*walk_counts(maps, labels(maps, H, traj), valid))
-
-
-def rooms_spanned(maps: DecisionMaps, H, traj, traj_mask, end):
-    """Number of distinct rooms visited by the trajectory mapped by ``H (3,)`` up to ``end``."""
-    t = jnp.arange(jnp.asarray(traj).shape[0])
-    label, valid, *_ = events(maps, H, traj, jnp.asarray(traj_mask, bool) & (t <= end))
-    rooms = jnp.arange(maps.adjacency.shape[-1] - 1, dtype=label.dtype)
-    seen = jnp.any((label[..., :, None] == rooms) & valid[..., :, None], axis=-2)
-    return jnp.sum(seen, axis=-1).astype(jnp.int32)
+    (prev, counts), _ = jax.lax.scan(step, (walk.prev, walk.counts), (lab_t, val_t))
+    return Walk(counts, prev)

@@ -1,7 +1,7 @@
 """A decision a robot can act on: a commit persists, tracks the anchor, and ends only on
 evidence that contradicts it.
 
-The per-prefix decision (``state.decide_prefix``) is a pure function of the windows seen so
+The rule at each window (``rule.finish``) is a pure function of the windows seen so
 far and may flip (COMMIT, then AMBIGUOUS when a new alias becomes feasible, then COMMIT...).
 A robot cannot act on that, so the reported state is a small machine over the prefixes:
 
@@ -34,8 +34,8 @@ A robot cannot act on that, so the reported state is a small machine over the pr
   then becomes AMBIGUOUS (multimodal) resp. DEFER for that window, and the machine starts
   over from the next window (a new commit needs the per-prefix rules again).
 
-``step`` is shared by the batch evaluator (``lax.scan`` over the prefixes) and the streaming
-initializer (one step per window), so both report the same states.
+``step`` is one transition; the layer (``decision.layer.update``) takes it once per window
+and lane, for the robot and the batch alike.
 """
 
 from __future__ import annotations
@@ -48,11 +48,11 @@ import jax.numpy as jnp
 
 from mfcl_jax import se2
 from mfcl_jax.decision import lattice
-from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, Decisions
+from mfcl_jax.decision.outcome import AMBIGUOUS, COMMIT, DEFER, Decision
 
-__all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "STALE", "initial", "step", "track"]
+__all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "STALE", "initial", "step"]
 
-CONTRADICTED, INFEASIBLE, STALE = 9, 10, 13  # keys of state.REASONS
+CONTRADICTED, INFEASIBLE, STALE = 9, 10, 13  # keys of outcome.REASONS
 TRACK = (0.5, math.radians(3.0))  # a newest candidate this close to the held anchor tracks it
 
 
@@ -92,7 +92,7 @@ def _stale(held_anchor, newest, p):
     return jnp.any(mask) & same & ((dxy > TRACK[0]) | (dth > TRACK[1]))
 
 
-def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisions]:
+def step(held: Held, raw: Decision, newest, p, use_gate) -> tuple[Held, Decision]:
     """One window.
 
     Args:
@@ -154,16 +154,3 @@ def step(held: Held, raw: Decisions, newest, p, use_gate) -> tuple[Held, Decisio
     committed = keep | new_commit
     held = Held(committed, jnp.where(keep, tracked, jnp.where(new_commit, raw.anchor, held.anchor)))
     return held, out
-
-
-def track(raw: Decisions, H, score, mask, X, p, use_gate) -> Decisions:
-    """The machine over every prefix of one run (``raw`` leaves have leading axis ``K``;
-    ``H (K, J, 3)``, ``score``, ``mask (K, J)`` the candidates, ``X (K, 3)`` the windows'
-    odometry poses)."""
-
-    def body(h, xs):
-        d, *newest = xs
-        return step(h, d, newest, p, use_gate)
-
-    _, out = jax.lax.scan(body, initial(raw.anchor.dtype), (raw, H, score, mask, X))
-    return out

@@ -25,6 +25,7 @@ from mfcl_jax.decision import symmetry
 from mfcl_jax.floorplan.raster import Rasters
 
 __all__ = [
+    "Symmetry",
     "DOOR",
     "WALL",
     "OUTSIDE",
@@ -33,12 +34,42 @@ __all__ = [
     "DecisionMaps",
     "decision_maps",
     "pad_maps",
+    "stack_maps",
 ]
 
 DOOR, WALL, OUTSIDE = -1, -2, -3
 # Width (m) of the free-space penalty kernel of the certification's fields: the front-end's
 # default (``FrontendParams.sigma_free``), so the same score judges candidates and competitors.
 CERT_SIGMA_FREE = 0.05
+
+
+@dataclass(frozen=True)
+class Symmetry:
+    """The building's self-motions at one room-congruence threshold (leaves may carry a
+    leading set axis ``(Q, ...)``: one entry per threshold, ``DecisionMaps.sym``).
+
+    Attributes:
+        offsets: ``(P, 2)`` translations between congruent rooms (both signs), padded.
+        offsets_mask: ``(P,)`` bool.
+        generators: ``(G, 2)`` fundamental congruent-room offsets (one sign), padded.
+        generators_mask: ``(G,)`` bool.
+        motions: ``(M, 3)`` rotational self-motions ``g = (x, y, theta)`` of the building
+            (rigid motions by a quarter turn mapping rooms onto distinct congruent rooms; see
+            ``symmetry``), padded.
+        motions_mask: ``(M,)`` bool.
+    """
+
+    offsets: jax.Array
+    offsets_mask: jax.Array
+    generators: jax.Array
+    generators_mask: jax.Array
+    motions: jax.Array
+    motions_mask: jax.Array
+
+
+jax.tree_util.register_dataclass(
+    Symmetry, data_fields=list(Symmetry.__dataclass_fields__), meta_fields=[]
+)
 
 
 @dataclass(frozen=True)
@@ -50,14 +81,8 @@ class DecisionMaps:
         label: ``(H, W)`` int32 cell label: room index, ``DOOR``, ``WALL`` or ``OUTSIDE``.
         adjacency: ``(R + 1, R + 1)`` bool room graph; index ``R`` is the outside, joined to
             rooms with an exterior door.
-        offsets: ``(P, 2)`` translations between congruent rooms (both signs), padded.
-        offsets_mask: ``(P,)`` bool.
-        generators: ``(G, 2)`` fundamental congruent-room offsets (one sign), padded.
-        generators_mask: ``(G,)`` bool.
-        motions: ``(M, 3)`` rotational self-motions ``g = (x, y, theta)`` of the building
-            (rigid motions by a quarter turn mapping rooms onto distinct congruent rooms; see
-            ``symmetry``), padded.
-        motions_mask: ``(M,)`` bool.
+        sym: ``Symmetry`` with a leading axis ``(Q, ...)``: one set per room-congruence
+            threshold asked for (``decision_maps(min_iou=...)``; a lane picks one).
         sdf4, pen4: ``(H + 1, W + 1, 4)`` the verification fields (``frontend.verify``:
             signed wall distance and free-space penalty, ``stack4`` layout).
         res: cell size (m).
@@ -66,12 +91,7 @@ class DecisionMaps:
     origin: jax.Array
     label: jax.Array
     adjacency: jax.Array
-    offsets: jax.Array
-    offsets_mask: jax.Array
-    generators: jax.Array
-    generators_mask: jax.Array
-    motions: jax.Array
-    motions_mask: jax.Array
+    sym: Symmetry
     sdf4: jax.Array
     pen4: jax.Array
     res: float = 0.10
@@ -80,22 +100,14 @@ class DecisionMaps:
     def n_rooms(self) -> int:
         return int(self.adjacency.shape[-1]) - 1
 
+    @property
+    def n_sets(self) -> int:
+        return int(self.sym.offsets_mask.shape[-2])
+
 
 jax.tree_util.register_dataclass(
     DecisionMaps,
-    data_fields=[
-        "origin",
-        "label",
-        "adjacency",
-        "offsets",
-        "offsets_mask",
-        "generators",
-        "generators_mask",
-        "motions",
-        "motions_mask",
-        "sdf4",
-        "pen4",
-    ],
+    data_fields=["origin", "label", "adjacency", "sym", "sdf4", "pen4"],
     meta_fields=["res"],
 )
 
@@ -183,10 +195,36 @@ def _congruent_offsets_poly(fp, min_iou: float) -> np.ndarray:
 MIN_CONGRUENT_IOU = 0.8
 
 
+def _symmetry(source, r, min_iou, max_offsets, max_generators, dedupe, max_motions):
+    """The ``Symmetry`` (host arrays, unpadded capacities resolved) at one threshold."""
+    if isinstance(source, Rasters):
+        offs = _congruent_offsets(r, min_iou)
+    else:
+        offs = _congruent_offsets_poly(source, min_iou)
+    uniq: list[np.ndarray] = []
+    for o in offs:
+        if all(np.hypot(*(o - u)) > dedupe for u in uniq):
+            uniq.append(o)
+    offs = np.asarray(uniq, np.float64).reshape(-1, 2)
+    gens = _fundamentals(offs, dedupe)[:max_generators]
+    if isinstance(source, Rasters):
+        mots = np.zeros((0, 3))
+    else:
+        mots, _ = symmetry.rotational_motions(source, min_iou, dedupe)
+    return offs, gens, mots
+
+
+def _bucket(n: int, minimum: int) -> int:
+    cap = minimum
+    while cap < n:
+        cap *= 2
+    return cap
+
+
 def decision_maps(
     source,
     res: float = 0.10,
-    min_iou: float = MIN_CONGRUENT_IOU,
+    min_iou: float | tuple[float, ...] = MIN_CONGRUENT_IOU,
     max_offsets: int | None = None,
     max_generators: int = 2,
     dedupe: float = 0.5,
@@ -199,7 +237,8 @@ def decision_maps(
             ``Rasters`` (then the outside is joined to no room).
         res: raster resolution (m) when ``source`` is a floor plan.
         min_iou: IoU after centroid alignment above which two rooms are congruent (room
-            polygons for a ``Floorplan``, cell sets for bare ``Rasters``).
+            polygons for a ``Floorplan``, cell sets for bare ``Rasters``); a tuple gives one
+            symmetry set per threshold (``DecisionMaps.sym`` axis ``Q``).
         max_offsets: static capacity of the congruent-room offset list (default: sized to
             the building, a power of two >= 32).
         max_generators: static capacity of the fundamental offsets used by the alias probe.
@@ -232,38 +271,25 @@ def decision_maps(
     adj[n, n] = True
     for i in exterior:
         adj[i, n] = adj[n, i] = True
-    if isinstance(source, Rasters):
-        offs = _congruent_offsets(r, min_iou)
-    else:
-        offs = _congruent_offsets_poly(source, min_iou)
-    uniq: list[np.ndarray] = []
-    for o in offs:
-        if all(np.hypot(*(o - u)) > dedupe for u in uniq):
-            uniq.append(o)
-    offs = np.asarray(uniq, np.float64).reshape(-1, 2)
-    gens = _fundamentals(offs, dedupe)[:max_generators]
-    if max_offsets is None:
-        max_offsets = 32
-        while max_offsets < len(offs):
-            max_offsets *= 2
-    if isinstance(source, Rasters):
-        mots = np.zeros((0, 3))
-    else:
-        mots, _ = symmetry.rotational_motions(source, min_iou, dedupe)
-    if max_motions is None:
-        max_motions = 8
-        while max_motions < len(mots):
-            max_motions *= 2
-    o, om = _pad(offs, max_offsets)
-    g, gm = _pad(gens, max_generators)
-    mo, mm = _pad(mots, max_motions, "rotational motions")
+    ious = (min_iou,) if np.ndim(min_iou) == 0 else tuple(min_iou)
+    sets = [_symmetry(source, r, m, max_offsets, max_generators, dedupe, max_motions)
+            for m in ious]  # fmt: skip
+    n_off = max_offsets or _bucket(max(len(o) for o, _, _ in sets), 32)
+    n_mot = max_motions or _bucket(max(len(m) for _, _, m in sets), 8)
+    cols = []
+    for offs, gens, mots in sets:
+        o, om = _pad(offs, n_off)
+        g, gm = _pad(gens, max_generators)
+        mo, mm = _pad(mots, n_mot, "rotational motions")
+        cols.append((o, om, g, gm, mo, mm))
+    sym = Symmetry(*(np.stack(c) for c in zip(*cols, strict=True)))
     origin = np.asarray(r.origin, np.float32)
     from mfcl_jax.frontend import verify
 
     fp = None if isinstance(source, Rasters) else source
     sdf, pen = verify.plan_fields(fp, r, CERT_SIGMA_FREE)
     sdf4, pen4 = verify.stack4(sdf, verify.FAR), verify.stack4(pen, 1.0)
-    return DecisionMaps(origin, label, adj, o, om, g, gm, mo, mm, sdf4, pen4, float(r.res))
+    return DecisionMaps(origin, label, adj, sym, sdf4, pen4, float(r.res))
 
 
 def pad_maps(
@@ -271,12 +297,13 @@ def pad_maps(
     shape: tuple[int, int],
     n_rooms: int | None = None,
     n_motions: int | None = None,
+    n_offsets: int | None = None,
 ) -> DecisionMaps:
-    """Pads host ``DecisionMaps`` to a grid bucket ``(H, W)`` and a room count (outside stays last).
+    """Pads host ``DecisionMaps`` to a grid bucket ``(H, W)`` and a room count (outside stays
+    last), and its symmetry sets to ``n_motions`` motions and ``n_offsets`` offsets.
 
-    Padding cells are ``OUTSIDE``; padded rooms are isolated; ``n_motions`` (default: kept)
-    pads the rotational-motion capacity. Lets runs of different buildings (or tests) share one
-    compiled shape.
+    Padding cells are ``OUTSIDE``; padded rooms are isolated. Lets runs of different buildings
+    (or tests) share one compiled shape.
     """
     h, w = np.asarray(m.label).shape
     H, W = shape
@@ -292,24 +319,30 @@ def pad_maps(
     adj[R, :n] = a[n, :n]
     adj[R, R] = True
     adj[np.arange(R), np.arange(R)] = True
-    mo, mm = np.asarray(m.motions), np.asarray(m.motions_mask)
-    M = mo.shape[0] if n_motions is None else n_motions
-    if M < int(mm.sum()):
-        raise ValueError(f"pad_maps: {int(mm.sum())} rotational motions exceed n_motions={M}")
-    mo, mm = _pad(mo[mm], M, "rotational motions")
+    s = jax.tree.map(np.asarray, m.sym)
+    M = s.motions.shape[1] if n_motions is None else n_motions
+    P = s.offsets.shape[1] if n_offsets is None else n_offsets
+    cols = []
+    for q in range(s.offsets.shape[0]):
+        if M < int(s.motions_mask[q].sum()) or P < int(s.offsets_mask[q].sum()):
+            raise ValueError(f"pad_maps: symmetry set {q} exceeds {M} motions / {P} offsets")
+        mo, mm = _pad(s.motions[q][s.motions_mask[q]], M, "rotational motions")
+        o, om = _pad(s.offsets[q][s.offsets_mask[q]], P)
+        cols.append((o, om, s.generators[q], s.generators_mask[q], mo, mm))
+    sym = Symmetry(*(np.stack(c) for c in zip(*cols, strict=True)))
     pad4 = ((0, H - h), (0, W - w), (0, 0))
     from mfcl_jax.frontend.verify import FAR
 
     sdf4 = np.pad(np.asarray(m.sdf4), pad4, constant_values=FAR)
     pen4 = np.pad(np.asarray(m.pen4), pad4, constant_values=1.0)
-    return DecisionMaps(
-        np.asarray(m.origin),
-        label,
-        adj,
-        *(np.asarray(x) for x in (m.offsets, m.offsets_mask, m.generators, m.generators_mask)),
-        mo,
-        mm,
-        sdf4,
-        pen4,
-        m.res,
-    )
+    return DecisionMaps(np.asarray(m.origin), label, adj, sym, sdf4, pen4, m.res)
+
+
+def stack_maps(maps: list[DecisionMaps]) -> DecisionMaps:
+    """Buildings' maps padded to one bucket and stacked on a leading axis ``(B, ...)``."""
+    shape = tuple(int(max(np.asarray(m.label).shape[i] for m in maps)) for i in range(2))
+    n_rooms = max(m.n_rooms for m in maps)
+    n_mot = max(int(np.asarray(m.sym.motions).shape[1]) for m in maps)
+    n_off = max(int(np.asarray(m.sym.offsets).shape[1]) for m in maps)
+    padded = [pad_maps(m, shape, n_rooms, n_mot, n_off) for m in maps]
+    return jax.tree.map(lambda *xs: np.stack(xs), *padded)

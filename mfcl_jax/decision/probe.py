@@ -10,7 +10,7 @@ An alias of either kind is admissible iff it passes the gate (``c >= tau_c``) an
 ``c >= c_winner - gamma``; translational ones are reported first.
 
 The winner itself is gated in the same batched call, and its rooms spanned read from the same
-labels, so the probe costs one label lookup and one counting pass (``gate.walk_counts``) of
+labels, so the probe costs one label lookup and one counting pass (``gate.walk_labels``) of
 ``1 + 2 P n_cap + M`` anchors over the trajectory.
 """
 
@@ -48,15 +48,16 @@ jax.tree_util.register_dataclass(
 
 
 def probe(
-    maps, t_star, taus, taus_mask, traj, traj_mask, end, tau_c, gamma, n_max, n_cap: int = 3
+    maps, sym, t_star, taus, taus_mask, traj, valid, tau_c, gamma, n_max, n_cap: int = 3
 ) -> ProbeResult:
-    """Gates ``T*``, its period-shifted and its rotated aliases on the samples ``t <= end``.
+    """Gates ``T*``, its period-shifted and its rotated aliases on the samples ``valid``.
 
     Args:
-        maps: ``DecisionMaps`` (its ``motions`` give the rotational aliases).
+        maps: ``DecisionMaps``; sym: its ``Symmetry`` set in use (``motions`` give the
+            rotational aliases).
         t_star: ``(3,)`` winner anchor.
         taus: ``(P, 2)`` probe periods; taus_mask: ``(P,)`` bool (all False: no probe).
-        traj: ``(T, 3)``; traj_mask: ``(T,)``; end: last sample index of the prefix.
+        traj: ``(T, 3)``; valid: ``(T,)`` the samples of the prefix.
         tau_c, gamma, n_max: thresholds (traced); ``n_max <= n_cap``.
         n_cap: static number of shifts per sign.
     """
@@ -66,20 +67,19 @@ def probe(
         [t_star[:2] + shift, jnp.broadcast_to(t_star[2], shift.shape[:-1])[..., None]], axis=-1
     )
     p = taus.shape[0]
-    m = maps.motions.shape[0]
-    rot = se2.compose(maps.motions.astype(t_star.dtype), t_star[None])  # (M, 3) g T*
+    m = sym.motions.shape[0]
+    rot = se2.compose(sym.motions.astype(t_star.dtype), t_star[None])  # (M, 3) g T*
     anchors = jnp.concatenate([t_star[None], alias.reshape(-1, 3), rot], axis=0)
-    t = jnp.arange(traj.shape[0])
-    valid = jnp.asarray(traj_mask, bool) & (t <= end)
     label = gate_mod.labels(maps, anchors, traj)  # (A, T)
-    c = gate_mod.consistency_from_counts(*gate_mod.walk_counts(maps, label, valid))
+    walk = gate_mod.walk_labels(maps, label, valid, gate_mod.start_walk(anchors.shape[:1]))
+    c = walk.consistency()
     rooms = jnp.arange(maps.adjacency.shape[-1] - 1, dtype=label.dtype)
     seen = jnp.any((label[0][:, None] == rooms) & valid[:, None], axis=0)
     c_win, c_alias = c[0], c[1 : 1 + p * 2 * n_cap].reshape(p, 2 * n_cap)
     c_rot = c[1 + p * 2 * n_cap :]
-    rot_adm = maps.motions_mask & (c_rot >= tau_c) & (c_rot >= c_win - gamma)
+    rot_adm = sym.motions_mask & (c_rot >= tau_c) & (c_rot >= c_win - gamma)
     rot_found = jnp.any(rot_adm)
-    g = maps.motions[jnp.argmax(rot_adm)] if m else jnp.zeros((3,), t_star.dtype)
+    g = sym.motions[jnp.argmax(rot_adm)] if m else jnp.zeros((3,), t_star.dtype)
     used = taus_mask[:, None] & (jnp.abs(n).astype(jnp.float32) <= n_max)[None, :]
     adm = used & (c_alias >= tau_c) & (c_alias >= c_win - gamma)
     found = jnp.any(adm)
@@ -94,7 +94,7 @@ def probe(
         n=jnp.where(found, n[flat % (2 * n_cap)], 0).astype(jnp.int32),
         rot_alias=rot_found,
         motion=jnp.where(rot_found, g.astype(t_star.dtype), jnp.zeros((3,), t_star.dtype)),
-        c_rot=jnp.max(jnp.where(maps.motions_mask, c_rot, 0.0), initial=0.0),
+        c_rot=jnp.max(jnp.where(sym.motions_mask, c_rot, 0.0), initial=0.0),
         aliases=anchors[1:],
         aliases_ok=jnp.concatenate([adm.reshape(-1), rot_adm]),
     )

@@ -199,16 +199,29 @@ def map_peaks(sc, th, plan_shape, n_img: int, res: float, origin, k: int):
     return jnp.stack([tx, ty, jnp.full_like(tx, th)], -1), val
 
 
+def fft_size(n: int) -> int:
+    """The smallest ``2^a 3^b 5^c >= n`` (sizes the FFT handles fast)."""
+    best = 1 << max(0, (int(n) - 1).bit_length())
+    for a in range(best.bit_length()):
+        for b in range(8):
+            for c in range(6):
+                v = (1 << a) * 3**b * 5**c
+                if n <= v < best:
+                    best = v
+    return best
+
+
 def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
     """Best ``peaks_per_yaw`` coarse placements per heading: ``(Y * P, 3)`` and scores."""
     res = fields.c_res
     half = n_img * res / 2
     hc, wc = fields.c_hit.shape
-    fh, fw = hc + n_img, wc + n_img
-    F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw))
-    F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw))
+    # Correlation sizes padded to fast FFT lengths; shifts past the plan's side are masked.
+    fh, fw = fft_size(hc + n_img), fft_size(wc + n_img)
     npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
     nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
+    F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw)) / npts
+    F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw)) * (p.lam / nfree)
     c_origin = fields.origin  # coarse grid shares the fine origin
     yaws = jnp.deg2rad(jnp.arange(0.0, 360.0, p.yaw_step_deg))
 
@@ -217,9 +230,10 @@ def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
         img_p = splat(pts @ R.T, pok, n_img, res, half)
         img_f = splat(frees @ R.T, fok, n_img, res, half)
         # score[s] = sum_u img[u] field[u + s]; s = -(n-1) .. hc-1, stored modulo fh / fw.
-        cor_h = jnp.fft.irfft2(F_hit * jnp.conj(jnp.fft.rfft2(img_p, (fh, fw))), (fh, fw))
-        cor_b = jnp.fft.irfft2(F_bad * jnp.conj(jnp.fft.rfft2(img_f, (fh, fw))), (fh, fw))
-        sc = cor_h / npts - p.lam * cor_b / nfree
+        spec = F_hit * jnp.conj(jnp.fft.rfft2(img_p, (fh, fw))) - F_bad * jnp.conj(
+            jnp.fft.rfft2(img_f, (fh, fw))
+        )
+        sc = jnp.fft.irfft2(spec, (fh, fw))
         return map_peaks(sc, th, (hc, wc), n_img, res, c_origin, p.peaks_per_yaw)
 
     poses, vals = jax.lax.map(one, yaws)
@@ -258,7 +272,6 @@ def nms(poses, vals, n, nms_xy, nms_rad):
     return poses[sel], jnp.where(keep[sel], vals[sel], -jnp.inf)
 
 
-@partial(jax.jit, static_argnames=("p", "n_img"))
 def search(pts, pok, frees, fok, fields: PlanFields, p: SearchParams, n_img: int):
     """Best rigid placements of a cloud in the plan.
 

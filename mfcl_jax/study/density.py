@@ -15,7 +15,7 @@ from mfcl_jax import windows as W
 from mfcl_jax.batch import Candidates
 from mfcl_jax.study.pipeline import StudyData
 
-__all__ = ["subset", "flood", "density_table"]
+__all__ = ["subset", "flood", "stack_copies", "density_table"]
 
 
 def subset(data: StudyData, cands: Candidates, run_ids):
@@ -65,6 +65,25 @@ def flood(c: Candidates, factor: int, seed: int = 0, jitter_xy=0.2, jitter_deg=1
         score=np.concatenate([score, new_score], 1),
         mask=np.concatenate([mask, new_mask], 1),
         reason=np.asarray(c.reason),
+    )
+
+
+def stack_copies(a: Candidates, b: Candidates) -> Candidates:
+    """The rows of ``a`` then those of ``b``, ``a`` padded with masked candidates to ``b``'s
+    count (two copies of one run decided in one batch)."""
+    j = np.asarray(b.pose).shape[1]
+
+    def pad(x, fill):
+        x = np.asarray(x)
+        width = [(0, 0)] * x.ndim
+        width[1] = (0, j - x.shape[1])
+        return np.pad(x, width, constant_values=fill)
+
+    return Candidates(
+        pose=np.concatenate([pad(a.pose, 0.0), np.asarray(b.pose)]),
+        score=np.concatenate([pad(a.score, -np.inf), np.asarray(b.score)]),
+        mask=np.concatenate([pad(a.mask, False), np.asarray(b.mask)]),
+        reason=np.concatenate([np.asarray(a.reason), np.asarray(b.reason)]),
     )
 
 

@@ -2,7 +2,8 @@
 
 Scenes are simulated into ``Recording``s (``sources.simulated``), cut into windows for every
 ``d_s`` (``windows``), registered by the one front-end driver (``frontend.driver.FrontEnd``),
-decided in one compiled call (``decision.driver.decide``) and scored by the one scorer
+decided by the one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan`` of
+``layer.update``) and scored by the one scorer
 (``score.score_batch``). Ground truth enters only in ``score``.
 """
 
@@ -18,9 +19,9 @@ import pandas as pd
 from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.batch import Candidates
-from mfcl_jax.decision import driver
-from mfcl_jax.decision.policies import OURS_VARIANTS
-from mfcl_jax.decision.state import DecisionParams
+from mfcl_jax.decision import runs as decision_runs
+from mfcl_jax.decision.lanes import OURS_VARIANTS
+from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.floorplan.scenes import get_scene
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.score import pose_at, score_batch
@@ -97,27 +98,27 @@ def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True,
         t0 = time.perf_counter()
         sims = simulate(scene, seeds=seeds, params=sim)
         by = {(r.meta["trajectory"], r.meta["seed"]): r for r in sims}
+        todo = [(by[(traj, s)], traj, float(ds), s)
+                for traj in scene.trajectories for ds in d_s for s in seeds]  # fmt: skip
+        wins = W.cut_many(
+            (rec.seq, W.WindowParams(**{**window.__dict__, "d_s": ds})) for rec, _, ds, _ in todo
+        )
         n0 = len(items)
-        for traj in scene.trajectories:
-            for ds in d_s:
-                wp = W.WindowParams(**{**window.__dict__, "d_s": float(ds)})
-                for s in seeds:
-                    rec = by[(traj, s)]
-                    w = W.cut(rec.seq, wp)
-                    rows.append(
-                        dict(
-                            scene=name,
-                            trajectory=traj,
-                            d_s=float(ds),
-                            seed=int(s),
-                            run=len(items),
-                            n_scans=len(rec.seq),
-                            n_windows=len(w),
-                            length_m=rec.meta["length_m"],
-                        )
-                    )
-                    items.append((rec.seq, w, b))
-                    recs.append(rec)
+        for (rec, traj, ds, s), w in zip(todo, wins, strict=True):
+            rows.append(
+                dict(
+                    scene=name,
+                    trajectory=traj,
+                    d_s=ds,
+                    seed=int(s),
+                    run=len(items),
+                    n_scans=len(rec.seq),
+                    n_windows=len(w),
+                    length_m=rec.meta["length_m"],
+                )
+            )
+            items.append((rec.seq, w, b))
+            recs.append(rec)
         dt = time.perf_counter() - t0
         n_sub = sum(len(w) for _, w, _ in items[n0:])
         timings.add(f"simulate {name}", 0.0, dt, f"{len(items) - n0} runs, {n_sub} submaps")
@@ -145,23 +146,17 @@ def decide(
     timings: Timings,
     label="decision",
     progress=True,
-    min_iou: float | None = None,
     batch=None,
+    ours=tuple(OURS_VARIANTS),
 ) -> pd.DataFrame:
-    """Every policy's decision at every window of every run, in one compiled call.
-
-    ``min_iou`` overrides the room-congruence threshold of the gate maps (an ablation);
-    ``batch`` replaces ``data.batch`` (a subset of its runs).
-    """
+    """Every lane's decision (``ours`` and the baselines) at every window of every run, in
+    one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset)."""
     batch = batch or data.batch
-    df, tm = driver.decide(batch, cands, data.floorplans, params, min_iou=min_iou)
-    note = f"{batch.runs.n_runs} runs x {batch.runs.n_windows} windows"
+    df, tm = decision_runs.decide(batch, cands, data.floorplans, params, ours=ours)
+    note = f"{batch.runs.n_runs} runs x {batch.runs.n_windows} windows, {tm['searches']} searches"
     timings.add(label, tm["compile_s"], tm["run_s"], note)
-    if tm.get("searches"):
-        timings.add(f"{label} rival search", 0.0, tm["search_s"], f"{tm['searches']} searches")
     log(f"[{label}] {note}: compile {tm['compile_s']:.1f} s, run {tm['run_s']:.1f} s", progress)
-    df = df[df["set"] == 0].drop(columns="set")
-    return df
+    return df[df["set"] == 0].drop(columns="set")
 
 
 def score(data: StudyData, windows: pd.DataFrame, batch=None, recordings=None, runs=None):

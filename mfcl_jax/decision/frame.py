@@ -1,0 +1,82 @@
+"""Decisions as a table: one row per run x window x threshold set x lane (host, pandas).
+
+Made after the jitted work from a ``Decision`` with leaves ``(R, K, L, ...)``: names for the
+codes, NaN where a column does not apply.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from mfcl_jax.decision import lattice
+from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
+
+__all__ = ["to_frame", "names"]
+
+
+def names(table: dict, codes) -> np.ndarray:
+    """``table[code]`` for every code (an object array; vectorised lookup)."""
+    lut = np.empty(max(table) + 1, object)
+    for k, v in table.items():
+        lut[k] = v
+    return lut[np.asarray(codes).ravel().astype(np.int64)]
+
+
+def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
+    """One row per run x window x lane.
+
+    ``policy`` and ``set`` name the lane (``LaneSpec.names``, ``LaneSpec.sets``); ``x, y,
+    yaw_deg`` hold the lane's anchor (ours: ``T*``, the tracked commit anchor while a commit
+    is held); ``tau_x, tau_y`` are NaN unless the kind is translation; ``alt_x, alt_y,
+    alt_yaw_deg`` hold the strongest competing explanation of an AMBIGUOUS decision
+    (``Decision.competitor``), NaN otherwise. A rotational alias is reported by ``kind ==
+    "rotation"``; its self-motion stays in ``Decision.alias_motion``.
+    """
+    d = dec
+    r, k, n_lanes = d.state.shape
+    if len(spec.names) != n_lanes:
+        raise ValueError(f"to_frame: {len(spec.names)} lane names for {n_lanes} lanes")
+    ir, ik, il = (a.ravel() for a in np.meshgrid(*map(np.arange, (r, k, n_lanes)), indexing="ij"))
+    translation = d.kind.ravel() == lattice.TRANSLATION
+    alt = d.has_competitor.ravel()
+    anchor = d.anchor.reshape(-1, 3)
+    comp = d.competitor.reshape(-1, 3)
+    tau = d.tau.reshape(-1, 2)
+    df = pd.DataFrame(
+        {
+            "run": ir,
+            "k": ik + 1,
+            "set": np.asarray(spec.sets)[il],
+            "policy": np.asarray(spec.names, object)[il],
+            "state": names(STATE_NAMES, d.state),
+            "kind": names(lattice.KIND_NAMES, d.kind),
+            "x": anchor[:, 0],
+            "y": anchor[:, 1],
+            "yaw_deg": np.rad2deg(anchor[:, 2]),
+            "tau_x": np.where(translation, tau[:, 0], np.nan),
+            "tau_y": np.where(translation, tau[:, 1], np.nan),
+            "alt_x": np.where(alt, comp[:, 0], np.nan),
+            "alt_y": np.where(alt, comp[:, 1], np.nan),
+            "alt_yaw_deg": np.where(alt, np.rad2deg(comp[:, 2]), np.nan),
+            "B1": d.b1.ravel(),
+            "B2": d.b2.ravel(),
+            "margin": d.margin.ravel(),
+            "n_groups": d.n_groups.ravel(),
+            "n_champions": d.n_champions.ravel(),
+            "spread": d.spread.ravel(),
+            "rooms": d.rooms.ravel(),
+            "c_winner": d.c_winner.ravel(),
+            "winner_gate": d.winner_gate.ravel(),
+            "probe_alias": d.probe_alias.ravel(),
+            "probe_c": d.probe_c.ravel(),
+            "reason": names(REASONS, d.reason),
+            "max_score": d.max_score.ravel(),
+            "certified": d.certified.ravel(),
+            "searched": d.searched.ravel(),
+            "n_rejected_nan": d.n_rejected.ravel(),
+        }
+    )
+    if window_mask is not None:
+        df = df[np.asarray(window_mask)[ir, ik]].reset_index(drop=True)
+    return df

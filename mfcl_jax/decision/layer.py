@@ -1,0 +1,301 @@
+"""The decision layer as a pure state machine, the way optax writes an optimizer.
+
+``init(maps, params, caps, lanes) -> LayerState`` and ``update(LayerState, WindowEvidence)
+-> (LayerState, Decision)`` on fixed-size device buffers (``history``). A robot calls the
+jitted ``update`` once per window; the study and the benchmark run ``vmap`` over runs of
+``lax.scan(update)`` (``decision.runs``). Both are the same function, so they decide alike.
+
+One update: anchor the window's candidates (``H = Y X^-1``, non-finite ones rejected and
+counted), extend the path and every kept candidate's gate walk by the new keyframes, push the
+window, then per core mode (gate on/off, symmetry set) the shared core (``rule.core``), the
+certification where some lane needs it (``rule.needs_certificate``, through ``sparse_cond``:
+a batch pays only for the windows that need one), each lane's rule (``rule.finish``) and
+commit machine (``machine.step``), and the baselines (``baselines.step``). Where the primary
+lane is about to enter COMMIT (and its run has searches left) the path is searched for rivals
+(``rivals.search``) and the window is decided again with them.
+
+A window with ``restart`` set begins a new odometry segment: the layer starts over (poses
+before and after an odometry jump are in incommensurable frames). A window with ``valid``
+false leaves the state as it was (padding of a batch).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+
+from mfcl_jax import se2
+from mfcl_jax.decision import baselines, gate, machine, rivals, rule
+from mfcl_jax.decision.anchors import sanitize
+from mfcl_jax.decision.history import Caps, History, Path, empty_history, empty_path
+from mfcl_jax.decision.history import push_path, push_window
+from mfcl_jax.decision.lanes import Lanes, LaneSpec
+from mfcl_jax.decision.maps import DecisionMaps
+from mfcl_jax.decision.outcome import COMMIT, Decision
+from mfcl_jax.decision.params import DecisionParams
+from mfcl_jax.frontend.path_search import PlanFields
+from mfcl_jax.sparse_cond import sparse_cond
+
+__all__ = ["World", "WindowEvidence", "LayerState", "init", "update", "advance", "split", "join"]
+
+
+@dataclass(frozen=True)
+class World:
+    """What every update reads and none changes: the plan, the thresholds, the lanes.
+
+    ``fields``/``n_img``: the rival search's view of the plan and its static image side
+    (None / 0 when the lanes search no rivals)."""
+
+    maps: DecisionMaps
+    params: DecisionParams
+    lanes: Lanes
+    fields: PlanFields | None
+    caps: Caps = field(metadata=dict(static=True), default=Caps())
+    spec: LaneSpec | None = field(metadata=dict(static=True), default=None)
+    n_img: int = field(metadata=dict(static=True), default=0)
+    rival_params: rivals.RivalParams = field(metadata=dict(static=True),
+                                             default=rivals.DEFAULT_RIVALS)  # fmt: skip
+
+
+jax.tree_util.register_dataclass(
+    World, data_fields=["maps", "params", "lanes", "fields"],
+    meta_fields=["caps", "spec", "n_img", "rival_params"],
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class WindowEvidence:
+    """One window as the layer sees it (leaves may carry batch axes).
+
+    Attributes:
+        Y: ``(J, 3)`` candidate poses ``^B T_{S_k}``; score: ``(J,)``; mask: ``(J,)``.
+        X: ``(3,)`` odometry pose ``^L T_{S_k}`` of the window's last scan.
+        traj: ``(S, 3)`` keyframe poses since the previous window, the last one this
+            window's last scan; traj_mask: ``(S,)`` (a prefix).
+        head: ``(S0, 3)`` keyframes before ``traj`` on the first window of a segment (the
+            history is empty there, so only the path takes them); head_mask: ``(S0,)``.
+        start: ``()`` int32 index of the window's first keyframe since the segment began.
+        ev_points, ev_origins: ``(P, 2)`` evidence sample (window frame); ev_mask: ``(P,)``.
+        valid: ``()`` bool (false: padding, state unchanged).
+        last: ``()`` bool the run's last window (forced-choice baselines commit there).
+        restart: ``()`` bool the first window of a new odometry segment.
+    """
+
+    Y: jax.Array
+    score: jax.Array
+    mask: jax.Array
+    X: jax.Array
+    traj: jax.Array
+    traj_mask: jax.Array
+    head: jax.Array
+    head_mask: jax.Array
+    start: jax.Array
+    ev_points: jax.Array
+    ev_origins: jax.Array
+    ev_mask: jax.Array
+    valid: jax.Array
+    last: jax.Array
+    restart: jax.Array
+
+
+@dataclass(frozen=True)
+class LayerState:
+    """Everything the layer remembers (fixed shapes; see ``history``)."""
+
+    world: World
+    history: History
+    path: Path
+    held: machine.Held  # (L,) per lane
+    base: baselines.BaselineState
+    rivals: jax.Array  # (E, 3) placements of the path found by the rival search
+    rivals_ok: jax.Array  # (E,) bool
+    searches: jax.Array  # () int32
+    n_rejected: jax.Array  # () int32 non-finite candidates rejected so far
+
+
+for _cls in (WindowEvidence, LayerState):
+    jax.tree_util.register_dataclass(
+        _cls, data_fields=list(_cls.__dataclass_fields__), meta_fields=[]
+    )
+
+
+def split(state: LayerState) -> tuple[World, dict]:
+    """``(world, memory)``: what never changes, and the rest (a robot donates the memory's
+    buffers to the next update and keeps the world)."""
+    mem = {k: v for k, v in state.__dict__.items() if k != "world"}
+    return state.world, mem
+
+
+def join(world: World, memory: dict) -> LayerState:
+    return LayerState(world=world, **memory)
+
+
+def _fresh(world: World) -> LayerState:
+    n_lanes = world.lanes.use_gate.shape[0]
+    e = world.rival_params.n_rivals * world.rival_params.max_searches
+    held = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_lanes, *a.shape)), machine.initial())
+    return LayerState(
+        world, empty_history(world.caps), empty_path(world.caps), held,
+        baselines.start(world.lanes.confidence_ratio.shape[0]), jnp.zeros((e, 3), jnp.float32),
+        jnp.zeros(e, bool), jnp.int32(0), jnp.int32(0),
+    )  # fmt: skip
+
+
+def init(maps: DecisionMaps, params: DecisionParams, caps: Caps, lanes: Lanes,
+         spec: LaneSpec, fields: PlanFields | None = None, n_img: int = 0,
+         rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS) -> LayerState:  # fmt: skip
+    """The state before the first window (``lanes.lanes`` gives ``lanes``, ``spec``)."""
+    if spec.primary >= 0 and (fields is None or n_img <= 0):
+        raise ValueError("init: the primary lane searches for rivals; pass fields= and n_img=")
+    world = World(maps, params, lanes, fields if spec.primary >= 0 else None, caps, spec,
+                  n_img, rival_params)  # fmt: skip
+    return _fresh(world)
+
+
+def _where(c, a, b):
+    return jax.tree.map(lambda x, y: jnp.where(c, x, y), a, b)
+
+
+def advance(state: LayerState, traj, traj_mask) -> LayerState:
+    """Keyframes that arrive without a window (more than ``Caps.step`` since the last one)."""
+    h = state.history
+    walk = gate.extend_walk(state.world.maps, h.H, traj, traj_mask, h.walk)
+    return LayerState(
+        state.world, History(**{**h.__dict__, "walk": walk}), push_path(state.path, traj, traj_mask),
+        state.held, state.base, state.rivals, state.rivals_ok, state.searches, state.n_rejected,
+    )  # fmt: skip
+
+
+def _cores(world: World, h: History, path: Path, cons):
+    """``rule.Core`` per core mode ``(M, ...)``."""
+    k = h.n - 1
+    valid = jnp.arange(path.pose.shape[0]) < path.n
+    ug = jnp.asarray([m[0] for m in world.spec.modes])
+    q = jnp.asarray([m[1] for m in world.spec.modes], jnp.int32)
+
+    def one(use_gate, qi):
+        sym = jax.tree.map(lambda a: a[qi], world.maps.sym)
+        return rule.core(k, h.H, h.score, h.mask, cons, h.s_end, h.start, h.end, path.pose,
+                         valid, world.maps, sym, world.params, use_gate,
+                         world.caps.probe_shifts)  # fmt: skip
+
+    return jax.vmap(one)(ug, q)
+
+
+def _certify(ops):
+    world, h, c, riv, riv_ok = ops
+    ev = (h.ev_points, h.ev_origins, h.ev_mask)
+    return rule.certify_core(h.n - 1, c, h.H, h.score, h.X, ev, (h.start, h.end), world.maps,
+                             world.params, riv, riv_ok, world.caps.cert_slots)  # fmt: skip
+
+
+def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True):
+    """Every lane's decision at the newest window, given the rivals: certification where
+    needed (and ``allow``ed), the rule, the commit machine. Returns ``(held, reported)``."""
+    k = h.n - 1
+    p, ln = world.params, world.lanes
+    modes = world.spec.modes
+    sym_of_mode = jnp.asarray([m[1] for m in modes], jnp.int32)
+
+    def mode_of(tree, m):
+        return jax.tree.map(lambda a: a[m], tree)
+
+    need = jax.vmap(
+        lambda m, ug, uc, bm, hl: rule.needs_certificate(mode_of(cores, m), p, ug, uc, bm, hl)
+    )(ln.mode, ln.use_gate, ln.use_cert, ln.b_min, held)
+    need_mode = jnp.any((ln.mode[None, :] == jnp.arange(len(modes))[:, None]) & need[None], 1)
+    need_mode = need_mode & allow
+    certs = jax.vmap(
+        lambda n, c: sparse_cond(n, _certify, (world, h, c, riv, riv_ok)), in_axes=(0, 0)
+    )(need_mode, cores)
+    newest = (h.H[k], h.score[k], h.mask[k], h.X[k])
+
+    def lane(m, ug, up, uc, bm, dm, mg, hl):
+        sym = mode_of(world.maps.sym, sym_of_mode[m])
+        raw = rule.finish(mode_of(cores, m), mode_of(certs, m), sym, p, ug, up, uc, bm, dm, mg)
+        return machine.step(hl, raw, newest, p, ug)
+
+    return jax.vmap(lane)(ln.mode, ln.use_gate, ln.use_probe, ln.use_cert, ln.b_min,
+                          ln.delta_min, ln.cert_margin, held)  # fmt: skip
+
+
+def _search(ops):
+    """The rival search on the history, written into the run's next rival slots."""
+    world, h, riv, riv_ok, searches = ops
+    rp = world.rival_params
+    found, ok = rivals.search(h.ev_points, h.ev_origins, h.ev_mask, h.X, world.fields,
+                              world.n_img, rp)  # fmt: skip
+    at = searches * rp.n_rivals
+    riv = jax.lax.dynamic_update_slice(riv, found.astype(riv.dtype), (at, 0))
+    return riv, jax.lax.dynamic_update_slice(riv_ok, ok, (at,))
+
+
+def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]:
+    """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``)."""
+    world = state.world
+    p = world.params
+    before = state
+    fresh = _fresh(world)
+    fresh = LayerState(**{**fresh.__dict__, "n_rejected": state.n_rejected})
+    state = _where(ev.restart, fresh, state)
+    H = se2.anchor(ev.Y.astype(jnp.float32), ev.X[None].astype(jnp.float32))
+    H, score, mask, bad = sanitize(H, ev.score, ev.mask)
+    path = push_path(push_path(state.path, ev.head, ev.head_mask), ev.traj, ev.traj_mask)
+    h = state.history
+    walk = gate.extend_walk(world.maps, h.H, ev.traj, ev.traj_mask, h.walk)
+    pvalid = jnp.arange(path.pose.shape[0]) < path.n
+    new_walk = gate.extend_walk(world.maps, H, path.pose, pvalid, gate.start_walk(H.shape[:1]))
+    end = path.total - 1
+    h = push_window(History(**{**h.__dict__, "walk": walk}), dict(
+        H=H, score=score, mask=mask, walk=new_walk, support=jnp.zeros(mask.shape, jnp.int32),
+        start=ev.start, end=end, s_end=path.dist, X=ev.X, ev_points=ev.ev_points,
+        ev_origins=ev.ev_origins, ev_mask=ev.ev_mask,
+    ))  # fmt: skip
+    k = h.n - 1
+    cons = h.walk.consistency()
+    cores = _cores(world, h, path, cons)
+    pl = world.spec.primary
+
+    def one_pass(i, carry):
+        # Pass 0 decides; where the primary lane is about to enter COMMIT (and searches are
+        # left) the path is searched for rivals and pass 1 decides again with them. A loop,
+        # so the program holds one copy of the decision.
+        riv, riv_ok, searches, searched, held, out = carry
+        allow = (i == 0) | searched
+        again = _decide(world, h, cores, state.held, riv, riv_ok, allow)
+        held, out = _where(allow, again, (held, out))
+        if pl >= 0:
+            enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
+            do = (i == 0) & enter & (searches < world.rival_params.max_searches) & ev.valid
+            found = sparse_cond(do, _search, (world, h, riv, riv_ok, searches))
+            riv, riv_ok = _where(do, found, (riv, riv_ok))
+            searches, searched = searches + do.astype(jnp.int32), searched | do
+        return riv, riv_ok, searches, searched, held, out
+
+    shape = jax.eval_shape(lambda: _decide(world, h, cores, state.held, state.rivals,
+                                           state.rivals_ok)[1])  # fmt: skip
+    zeros = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shape)
+    carry = (state.rivals, state.rivals_ok, state.searches, jnp.bool_(False), state.held, zeros)
+    riv, riv_ok, searches, searched, held, out = jax.lax.fori_loop(
+        0, 2 if pl >= 0 else 1, one_pass, carry
+    )
+    n_rejected = state.n_rejected + bad
+    out = Decision(**{**out.__dict__, "searched": jnp.broadcast_to(searched, out.state.shape),
+                      "n_rejected": jnp.broadcast_to(n_rejected, out.state.shape),
+                      "dropped": jnp.broadcast_to(h.dropped, out.state.shape)})  # fmt: skip
+    base = state.base
+    support = h.support
+    if world.spec.baselines:
+        base, support, bdec = baselines.step(
+            state.base, h.H, h.score, h.mask, cons, h.support, k, ev.last, p,
+            world.lanes.confidence_ratio, world.lanes.support_ratio,
+        )  # fmt: skip
+        bdec = jax.tree.map(lambda a: a.reshape(-1, *a.shape[2:]), bdec)
+        bdec = Decision(**{**bdec.__dict__, "n_rejected": jnp.broadcast_to(
+            n_rejected, bdec.state.shape)})  # fmt: skip
+        out = jax.tree.map(lambda a, b: jnp.concatenate([a, b], axis=0), out, bdec)
+    h = History(**{**h.__dict__, "support": support})
+    new = LayerState(world, h, path, held, base, riv, riv_ok, searches, n_rejected)
+    return _where(ev.valid, new, before), out

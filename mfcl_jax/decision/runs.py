@@ -1,0 +1,256 @@
+"""Many runs at once: ``vmap`` over runs of ``lax.scan(layer.update)``.
+
+The host lays every run's windows out as ``WindowEvidence`` of shape ``(R, K, ...)`` (the
+keyframes each window adds, its candidates, its evidence sample; a ``restart`` flag where an
+odometry segment begins), pads runs into chunks that share capacities (``Caps``) and at most
+``buildings_per_call`` buildings, and calls one compiled function per capacity bucket. The
+decision of every window is made once, by the same ``update`` a robot calls.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import jax
+import numpy as np
+
+from mfcl_jax.decision import layer, rivals
+from mfcl_jax.decision.history import Caps
+from mfcl_jax.decision.lanes import Lanes, LaneSpec
+from mfcl_jax.decision.maps import decision_maps, stack_maps
+from mfcl_jax.decision.params import DecisionParams
+
+__all__ = ["RunInputs", "run_inputs", "decide_runs", "chunks"]
+
+
+@dataclass(frozen=True)
+class RunInputs:
+    """The windows of ``R`` runs as the layer sees them (host arrays, ``(R, K, ...)``)."""
+
+    evidence: layer.WindowEvidence
+    n_windows: np.ndarray  # (R,) valid windows per run
+    seg_windows: np.ndarray  # (R,) most windows in one odometry segment
+    seg_keyframes: np.ndarray  # (R,) most keyframes in one odometry segment
+
+
+def run_inputs(batch, cands) -> RunInputs:
+    """``RunInputs`` of every run of a ``windows.WindowBatch`` and its ``Candidates``."""
+    rb, sub, ev = batch.runs, batch.submaps, batch.evidence
+    traj, seg, tmask = (np.asarray(a) for a in (rb.traj, rb.traj_seg, rb.traj_mask))
+    ws, we, wm, sm = (np.asarray(a) for a in (rb.window_start, rb.window_end, rb.window_mask,
+                                              rb.submap))  # fmt: skip
+    R, K = wm.shape
+    chunks, starts, restarts, lasts = [], np.zeros((R, K), np.int32), np.zeros((R, K), bool), \
+        np.zeros((R, K), bool)  # fmt: skip
+    seg_w, seg_t = np.zeros(R, np.int64), np.zeros(R, np.int64)
+    n_windows = wm.sum(1)
+    for r in range(R):
+        prev_seg, prev_end, t0, count = None, -1, 0, 0
+        for k in np.flatnonzero(wm[r]):
+            s = seg[r, ws[r, k]]
+            if s != prev_seg:
+                t0 = int(np.flatnonzero((seg[r] == s) & tmask[r])[0])
+                prev_end, count = t0 - 1, 0
+                restarts[r, k] = True
+                seg_t[r] = max(seg_t[r], int(((seg[r] == s) & tmask[r]).sum()))
+            count += 1
+            seg_w[r] = max(seg_w[r], count)
+            chunks.append((r, k, prev_end + 1, int(we[r, k]) + 1))
+            starts[r, k] = ws[r, k] - t0
+            prev_seg, prev_end = s, int(we[r, k])
+        if n_windows[r]:
+            lasts[r, np.flatnonzero(wm[r])[-1]] = True
+    # Keyframes per window: a few since the previous window, the whole window on a segment's
+    # first (whose history is empty: those go to ``head``, which extends no walk).
+    S = max([b - a for r, k, a, b in chunks if not restarts[r, k]], default=1)
+    S = -(-S // 16) * 16
+    S0 = max([b - a - S for r, k, a, b in chunks if restarts[r, k]], default=0)
+    S0 = -(-max(S0, 0) // 16) * 16
+    tr = np.zeros((R, K, S, 3), np.float32)
+    tm = np.zeros((R, K, S), bool)
+    hd = np.zeros((R, K, S0, 3), np.float32)
+    hm = np.zeros((R, K, S0), bool)
+    for r, k, a, b in chunks:
+        n = min(b - a, S)
+        tr[r, k, :n], tm[r, k, :n] = traj[r, b - n : b], True
+        if b - a > n:
+            hd[r, k, : b - a - n], hm[r, k, : b - a - n] = traj[r, a : b - n], True
+    idx = np.clip(sm, 0, max(sub.n - 1, 0))
+    ok = wm & (sm >= 0)
+    evw = layer.WindowEvidence(
+        Y=np.asarray(cands.pose)[idx], score=np.asarray(cands.score)[idx],
+        mask=np.asarray(cands.mask)[idx] & ok[..., None], X=np.asarray(sub.X)[idx],
+        traj=tr, traj_mask=tm, head=hd, head_mask=hm, start=starts, ev_points=np.asarray(ev.points)[idx],
+        ev_origins=np.asarray(ev.origins)[idx],
+        ev_mask=np.asarray(ev.mask)[idx] & ok[..., None], valid=ok, last=lasts,
+        restart=restarts,
+    )  # fmt: skip
+    return RunInputs(evw, n_windows, seg_w, seg_t)
+
+
+def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None):
+    """Run indices in chunks of at most ``runs_per_call`` runs and ``buildings_per_call``
+    distinct buildings; runs with different ``keys`` (capacity buckets) never share a chunk,
+    and runs of one building stay together where possible."""
+    rb = np.asarray(run_building)
+    keys = np.zeros(len(rb), np.int64) if keys is None else np.asarray(keys)
+    order = np.lexsort((rb, keys))
+    out, cur, seen, key = [], [], set(), None
+    for r in order:
+        b = int(rb[r])
+        full = len(cur) == runs_per_call or (b not in seen and len(seen) == buildings_per_call)
+        if cur and (full or keys[r] != key):
+            out.append(np.asarray(cur))
+            cur, seen = [], set()
+        cur.append(int(r))
+        seen.add(b)
+        key = keys[r]
+    if cur:
+        out.append(np.asarray(cur))
+    return out
+
+
+def _scan_runs(maps, fields, building, params, lanes, evidence, caps, spec, n_img, rp):
+    """``vmap`` over runs of ``lax.scan(update)``: Decision leaves ``(R, K, L, ...)``."""
+
+    def one(b, ev):
+        m = jax.tree.map(lambda a: a[b], maps)
+        f = None if fields is None else jax.tree.map(lambda a: a[b], fields)
+        state = layer.init(m, params, caps, lanes, spec, f, n_img, rp)
+        _, dec = jax.lax.scan(layer.update, state, ev)
+        return dec
+
+    return jax.vmap(one)(building, evidence)
+
+
+_COMPILED: dict = {}
+
+
+def _bucket(n: int, minimum: int, step: int | None = None) -> int:
+    if step:
+        return max(minimum, -(-int(n) // step) * step)
+    cap = minimum
+    while cap < n:
+        cap *= 2
+    return cap
+
+
+def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
+                lanes: Lanes, spec: LaneSpec, runs_per_call: int = 16,
+                buildings_per_call: int = 8, progress=None,
+                rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS):  # fmt: skip
+    """Every lane's decision at every window of every run.
+
+    Args:
+        inputs: ``run_inputs`` of the batch.
+        run_building: ``(R,)`` building index of each run into ``floorplans``.
+        params, lanes, spec: ``lanes.lanes(...)``.
+        runs_per_call, buildings_per_call: chunk sizes.
+        progress: optional callable ``progress(runs_done)``.
+
+    Returns:
+        ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
+        ``{"compile_s", "run_s", "searches"}``.
+    """
+    rb = np.asarray(run_building)
+    R, K = np.asarray(inputs.evidence.valid).shape
+    used = sorted(set(rb.tolist()))
+    # one grid bucket for every building of the batch: one compilation per capacity bucket
+    all_maps = stack_maps([decision_maps(floorplans[b], min_iou=spec.min_iou) for b in used])
+    search = spec.primary >= 0
+    all_fields = rivals.stack_fields([floorplans[b] for b in used], rival_params) if search \
+        else None  # fmt: skip
+    n_img = rivals.image_size([floorplans[b] for b in used], rival_params) if search else 0
+    # One capacity bucket for the whole batch: a compilation costs more than the padding.
+    k_b = np.full(R, _bucket(int(inputs.seg_windows.max(initial=1)), 16, 16))
+    t_b = np.full(R, _bucket(int(inputs.seg_keyframes.max(initial=1)), 128, 64))
+    J = int(np.asarray(inputs.evidence.mask).shape[2])
+    P = int(np.asarray(inputs.evidence.ev_mask).shape[2])
+    S = int(np.asarray(inputs.evidence.traj_mask).shape[2])
+    tm = {"compile_s": 0.0, "run_s": 0.0, "searches": 0}
+    out = None
+    done = 0
+    p = params.as_arrays()
+    runs_per_call = max(1, min(runs_per_call, R))
+    n_b = min(buildings_per_call, len(used))
+    for idx in chunks(rb, runs_per_call, n_b, keys=k_b * 65536 + t_b):
+        kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
+        caps = Caps(windows=kb, cands=J, traj=max(tb, S), step=S, evidence=P)
+        local_b = list(dict.fromkeys(rb[idx].tolist()))
+        rows = [used.index(b) for b in local_b] + [used.index(local_b[0])] * (n_b - len(local_b))
+        mp = jax.tree.map(lambda a, r=rows: a[r], all_maps)
+        fields = None if all_fields is None else jax.tree.map(lambda a, r=rows: a[r], all_fields)
+        bidx = np.asarray([local_b.index(b) for b in rb[idx]], np.int32)
+        n = len(idx)
+        kw = _bucket(int(inputs.n_windows[idx].max()), 16, 16)
+        ev = jax.tree.map(lambda a: _fit_windows(_pad_rows(np.asarray(a)[idx], runs_per_call), kw),
+                          inputs.evidence)  # fmt: skip
+        ev = layer.WindowEvidence(**{**ev.__dict__, "valid": np.where(
+            (np.arange(runs_per_call) < n)[:, None], ev.valid, False)})  # fmt: skip
+        bidx = _pad_rows(bidx, runs_per_call)
+        key = (caps, spec, n_img, rival_params, mp.label.shape, runs_per_call,
+               None if fields is None else fields.hit.shape, kw)  # fmt: skip
+        args = (mp, fields, bidx, p, lanes, ev)
+        if key not in _COMPILED:
+            t0 = time.perf_counter()
+            fn = jax.jit(_scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
+            _COMPILED[key] = fn.lower(*args, caps=caps, spec=spec, n_img=n_img,
+                                      rp=rival_params).compile()  # fmt: skip
+            tm["compile_s"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        dec = jax.block_until_ready(_COMPILED[key](*args))
+        tm["run_s"] += time.perf_counter() - t0
+        dec = jax.tree.map(lambda a: _fit_windows(np.asarray(a)[:n], K), dec)
+        if out is None:
+            out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
+        for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
+            o[idx] = d
+        done += n
+        if progress is not None:
+            progress(done)
+    tm["searches"] = int(np.asarray(out.searched)[..., 0].sum()) if out is not None else 0
+    return out, tm
+
+
+def _fit_windows(a: np.ndarray, n: int) -> np.ndarray:
+    """Axis 1 (windows) cut or zero-padded to ``n``."""
+    if a.shape[1] >= n:
+        return a[:, :n]
+    pad = [(0, 0)] * a.ndim
+    pad[1] = (0, n - a.shape[1])
+    return np.pad(a, pad)
+
+
+def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
+    if a.shape[0] >= n:
+        return a
+    return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
+
+
+
+
+def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
+           primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
+           buildings_per_call: int = 8, progress=None):  # fmt: skip
+    """Every lane's decision at every window of a ``WindowBatch``, as a table.
+
+    Args:
+        batch: ``windows.WindowBatch`` (with its evidence samples; points not needed).
+        cands: ``Candidates`` of ``batch.submaps`` (host).
+        floorplans: ``Floorplan`` per building index.
+        params: one ``DecisionParams`` or a list of threshold sets (``lanes.lanes``).
+        ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
+        primary, primary_set: the lane whose commits trigger the rival search.
+
+    Returns:
+        ``(frame, timing)``: ``frame.to_frame``'s rows for the batch's valid windows and
+        ``decide_runs``'s timing.
+    """
+    from mfcl_jax.decision.frame import to_frame
+    from mfcl_jax.decision.lanes import make_lanes
+
+    p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
+    dec, tm = decide_runs(run_inputs(batch, cands), batch.run_building, floorplans, p, ln, spec,
+                          runs_per_call, buildings_per_call, progress)  # fmt: skip
+    return to_frame(dec, spec, batch.runs.window_mask), tm

@@ -49,8 +49,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from mfcl_jax import se2  # noqa: E402
 from mfcl_jax import windows as W  # noqa: E402
-from mfcl_jax.batch import SubmapBatch, pad_submaps  # noqa: E402
-from mfcl_jax.floorplan.scenes import get_scene  # noqa: E402
+from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps  # noqa: E402
+from mfcl_jax.sim.scenes import get_scene  # noqa: E402
 from mfcl_jax.frontend import (  # noqa: E402
     FrontendParams,
     build_features,

@@ -24,7 +24,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pandas as pd
-from mfcl_jax.evaluate.metrics import CORRECT_XY, CORRECT_YAW_DEG
+from mfcl_jax.report.metrics import CORRECT_XY, CORRECT_YAW_DEG
 
 from mfcl_jax import se2
 from mfcl_jax.peers import MCLParams, commits, make_mcl, prepare_mcl_inputs

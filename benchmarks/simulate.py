@@ -18,8 +18,8 @@ import jax
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.batch import bucket
-from mfcl_jax.floorplan.scenes import SCENES, get_scene
+from mfcl_jax.windows.arrays import bucket
+from mfcl_jax.sim.scenes import SCENES, get_scene
 from mfcl_jax.sim import SimParams, cast, simulate
 from mfcl_jax.sim.trajectory import sample_path
 

@@ -7,8 +7,8 @@ import argparse
 import time
 from pathlib import Path
 
-from mfcl_jax.evaluate.plots_scene import plot_family
-from mfcl_jax.floorplan.families import FAMILIES, make_scene
+from mfcl_jax.report.plots_scene import plot_family
+from mfcl_jax.sim.families import FAMILIES, make_scene
 
 
 def main(argv=None) -> None:

@@ -8,7 +8,7 @@ import argparse
 import time
 from pathlib import Path
 
-from mfcl_jax.evaluate.plots_logs import plot_log_recording
+from mfcl_jax.report.plots_logs import plot_log_recording
 from mfcl_jax.sources.logs import LOGS, bag_recordings, log_recordings
 
 

@@ -9,8 +9,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from mfcl_jax.evaluate.plots_scene import plot_scenes  # noqa: E402
-from mfcl_jax.floorplan.scenes import SCENES, get_scene  # noqa: E402
+from mfcl_jax.report.plots_scene import plot_scenes  # noqa: E402
+from mfcl_jax.sim.scenes import SCENES, get_scene  # noqa: E402
 
 
 def main(argv=None) -> None:

@@ -86,12 +86,14 @@ def pointcloud2(ts, t, xyz, layout, frame="lidar", bigendian=False, height=1, ex
     )
 
 
-def odometry(ts, t, x, y, yaw, frame="odom", child="base_link"):
+def odometry(ts, t, x, y, yaw, frame="odom", child="base_link", q_scale=1.0):
+    """A nav_msgs/Odometry at ``(x, y, yaw)``; ``q_scale`` scales its quaternion (a bad
+    driver's non-unit quaternion)."""
     T = ts.types
     pose = T["geometry_msgs/msg/Pose"](
         position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
         orientation=T["geometry_msgs/msg/Quaternion"](
-            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+            x=0.0, y=0.0, z=q_scale * math.sin(yaw / 2), w=q_scale * math.cos(yaw / 2)
         ),
     )
     zero3 = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
@@ -106,14 +108,14 @@ def odometry(ts, t, x, y, yaw, frame="odom", child="base_link"):
     )
 
 
-def tf_message(ts, edges):
-    """A TFMessage from ``[(parent, child, (x, y, z), (qx, qy, qz, qw)), ...]``."""
+def tf_message(ts, edges, t=0.0):
+    """A TFMessage from ``[(parent, child, (x, y, z), (qx, qy, qz, qw)), ...]`` stamped ``t``."""
     T = ts.types
     out = []
     for parent, child, tr, q in edges:
         out.append(
             T["geometry_msgs/msg/TransformStamped"](
-                header=header(ts, 0.0, parent),
+                header=header(ts, t, parent),
                 child_frame_id=child,
                 transform=T["geometry_msgs/msg/Transform"](
                     translation=T["geometry_msgs/msg/Vector3"](x=tr[0], y=tr[1], z=tr[2]),

@@ -59,7 +59,7 @@ def make_submap(
 
 def batch(subs, P=None):
     """Pads ``[(pts, org, Y), ...]`` into a ``SubmapBatch`` (host)."""
-    from mfcl_jax.batch import SubmapBatch, bucket
+    from mfcl_jax.windows.arrays import SubmapBatch, bucket
 
     P = P or bucket(max(len(s[0]) for s in subs))
     n = len(subs)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import build_parser, main
-from mfcl_jax.floorplan.scenes import symmetric_bays
+from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.io import read_decisions, read_tum
 from mfcl_jax.sim.lidar3d import cast3d, livox_mid360
 from mfcl_jax.sim.world3d import build_geometry
@@ -83,7 +83,7 @@ def test_z_extent_rule_and_input_dim(walk):
     scans, notes = planar_scans(tall, PlanarParams(band=None), ["a"] * 3, "seq")
     assert "--no-band" in notes[0]
     # The CLI reads z only when a band will use it.
-    from mfcl_jax.cli_inputs import dataset_folders, load_input
+    from mfcl_jax.cli.inputs import dataset_folders, load_input
 
     args = build_parser().parse_args(["localize", str(d3), "--no-band"])
     _, seq, notes = load_input(args, dataset_folders(args))
@@ -141,7 +141,7 @@ def _tilted_clouds():
 
 
 def test_lidar_mount_levels_a_tilted_dataset(tmp_path):
-    from mfcl_jax.cli_inputs import dataset_folders, load_input
+    from mfcl_jax.cli.inputs import dataset_folders, load_input
 
     ds = write_dataset(tmp_path / "tilted", FP, [0.0, 1.0], _tilted_clouds(), POSES)
     mount = f"0,0,0,{TILT['roll_deg']},{TILT['pitch_deg']},0"
@@ -157,7 +157,7 @@ def test_lidar_mount_levels_a_tilted_dataset(tmp_path):
 def test_tf_static_mount_levels_a_bag(tmp_path):
     from _bags import LIVOX, odometry, pointcloud2, store, tf_message, write_bag
 
-    from mfcl_jax.cli_inputs import load_input
+    from mfcl_jax.cli.inputs import load_input
 
     r, p = math.radians(TILT["roll_deg"]), math.radians(TILT["pitch_deg"])
     # q = q_y(pitch) q_x(roll): the rotation Ry(pitch) Rx(roll) of the mount.

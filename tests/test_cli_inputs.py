@@ -113,7 +113,7 @@ class _Recorder:
 @pytest.fixture
 def recorder(monkeypatch):
     _Recorder.seen = []
-    monkeypatch.setattr(import_module("mfcl_jax.localizer"), "Localizer", _Recorder)
+    monkeypatch.setattr(import_module("mfcl_jax.robot.localizer"), "Localizer", _Recorder)
     return _Recorder.seen
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import main
-from mfcl_jax.floorplan.scenes import symmetric_bays
+from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.io import read_decisions
 
 WALKS = {

@@ -14,11 +14,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mfcl_jax import status
+from mfcl_jax.robot import status
 from mfcl_jax.cli import build_parser, main
 from mfcl_jax.io import DataError, read_decisions, write_decisions
 from mfcl_jax.io.decisions import decision_line
-from mfcl_jax.progress import Progress
+from mfcl_jax.robot.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -222,7 +222,7 @@ def test_progress_flag_reaches_simulate_and_localize():
 def test_cache_folder_from_the_environment(monkeypatch, tmp_path):
     import jax
 
-    from mfcl_jax.compile_cache import cache_dir, enable_cache
+    from mfcl_jax.robot.compile_cache import cache_dir, enable_cache
 
     monkeypatch.delenv("MFCL_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))

@@ -19,8 +19,8 @@ from tests.test_decision_layer import (
     A,
     J,
     K,
-    evaluate_runs,
     ours,
+    run_all,
     probe_cands,
 )
 from tests.test_decision_scenes import evidence_at, walk
@@ -62,8 +62,8 @@ def drifted_run(cand_fn, drift=DRIFT):
 
 
 RUN, TRUE = drifted_run(probe_cands)
-RECENT = evaluate_runs([RUN])  # default: the 3 most recent winner champions
-ALL = evaluate_runs([RUN], params=DecisionParams.stack([DecisionParams(recent=0.0)]))
+RECENT = run_all([RUN])  # default: the 3 most recent winner champions
+ALL = run_all([RUN], params=DecisionParams(recent=0.0))
 
 
 def test_drifted_champions_are_one_group_and_commit():
@@ -111,7 +111,7 @@ def test_c2_immunity_under_drift():
             run["H"][k, j0 : j0 + n] = np.where(pick[:, None], near_alias, anywhere)
             run["score"][k, j0 : j0 + n] = top * rng.uniform(0.0, 0.999, n)
             run["mask"][k, j0 : j0 + n] = True
-        out = evaluate_runs([run])
+        out = run_all([run])
         # States, kinds, counts and anchors are unchanged. The period reported with an
         # AMBIGUOUS translation is that of the strongest live competitor; fitted to the
         # windows (certify.REFINE), a flood candidate near the alias can be that competitor,

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from mfcl_jax import se2
 from mfcl_jax.decision import gate, lattice
-from mfcl_jax.decision.anchors import candidate_anchors, per_run, sanitize
+from mfcl_jax.decision.anchors import candidate_anchors, sanitize
 from mfcl_jax.decision.consensus import leader_groups
 from mfcl_jax.decision.maps import decision_maps
 from tests.test_decision_scenes import PITCH, row_of_rooms, three_rooms, walk
@@ -17,7 +17,10 @@ ROW = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms()))
 CLOSED = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms(closed=(2,))))
 
 
-_consistency = jax.jit(gate.consistency_at)
+@jax.jit
+def _consistency(maps, H, traj, valid):
+    walk = gate.extend_walk(maps, H, traj, valid, gate.start_walk(H.shape[:-1]))
+    return walk.consistency()
 
 
 def _c(maps, H, traj, cap=256):
@@ -26,7 +29,7 @@ def _c(maps, H, traj, cap=256):
     tr = np.zeros((cap, 3), np.float32)
     tr[:n] = traj
     H = np.asarray(H, np.float32)
-    return float(_consistency(maps, H, tr, np.arange(cap) < n, jnp.int32(n - 1)))
+    return float(_consistency(maps, H, tr, np.arange(cap) < n))
 
 
 pose = st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-3.1, 3.1)).map(
@@ -64,8 +67,6 @@ def test_sanitize_masks_and_counts_non_finite():
     assert np.all(np.isfinite(p2)) and np.all(np.isfinite(s2))
     assert np.asarray(bad).tolist() == [1, 1]
     assert np.asarray(m2).tolist() == [[True, False, True], [False, True, False]]
-    H, _, _, nb = per_run(p, s, m, np.array([[1, 0, -1]]), np.array([[True, True, False]]))
-    assert H.shape == (1, 3, 3, 3) and np.asarray(nb).tolist() == [[1, 1, 0]]
 
 
 def test_gate_passes_legal_revisit():
@@ -83,22 +84,27 @@ def test_gate_fails_jump_between_non_adjacent_rooms_and_leaving_the_building():
     assert _c(ROW, [2 * PITCH, 0, 0], tr2) < 0.5
 
 
-def test_prefix_table_equals_single_prefix_evaluation():
+def test_a_walk_extended_piece_by_piece_equals_one_walk_over_all_samples():
+    """The layer extends each candidate's walk by the keyframes a window adds; the counts
+    must be the integers of one walk over the whole trajectory, however it is cut."""
     rng = np.random.default_rng(0)
-    tr = walk([[3, 2.5], [25, 2.5], [20, 4.0]])
+    tr = walk([[3, 2.5], [25, 2.5], [20, 4.0]]).astype(np.float32)
     H = np.concatenate([rng.uniform(-8, 8, (4, 5, 2)), rng.uniform(-0.5, 0.5, (4, 5, 1))], -1)
     H = H.astype(np.float32)
-    ends = np.array([20, 40, 60, len(tr) - 1], np.int32)
-    mask = np.ones(len(tr), bool)
-    table = np.asarray(gate.prefix_table(ROW, H, tr, mask, ends))
-    for k, e in enumerate(ends):
-        direct = np.asarray(gate.consistency_at(ROW, H, tr, mask, e))
-        np.testing.assert_array_equal(table[..., k], direct)
-    assert table.min() >= 0 and table.max() <= 1
+    valid = rng.random(len(tr)) > 0.1
+    whole = gate.extend_walk(ROW, H, tr, valid, gate.start_walk(H.shape[:-1]))
+    cuts = [0, 1, 20, 21, 60, len(tr)]
+    w = gate.start_walk(H.shape[:-1])
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        w = gate.extend_walk(ROW, H, tr[a:b], valid[a:b], w)
+    np.testing.assert_array_equal(np.asarray(w.counts), np.asarray(whole.counts))
+    np.testing.assert_array_equal(np.asarray(w.prev), np.asarray(whole.prev))
+    c = np.asarray(whole.consistency())
+    assert c.min() >= 0 and c.max() <= 1
 
 
 def test_congruent_room_offsets():
-    m = decision_maps(row_of_rooms())
+    m = jax.tree.map(lambda a: a[0], decision_maps(row_of_rooms()).sym)
     offs = m.offsets[m.offsets_mask]
     assert np.allclose(
         sorted(np.abs(offs[:, 0])),
@@ -106,7 +112,7 @@ def test_congruent_room_offsets():
         atol=0.15,
     )
     assert np.allclose(m.generators[m.generators_mask], [[PITCH, 0]], atol=0.15)
-    m3 = decision_maps(three_rooms())
+    m3 = decision_maps(three_rooms()).sym
     assert not m3.offsets_mask.any() and not m3.generators_mask.any()
 
 
@@ -129,8 +135,8 @@ def _detect(anchors, maps=ROW, eps_t=2.5):
         a,
         np.ones(len(a), bool),
         jnp.int32(0),
-        maps.offsets,
-        maps.offsets_mask,
+        maps.sym.offsets[0],
+        maps.sym.offsets_mask[0],
         eps_t,
         np.deg2rad(12.0),
     )

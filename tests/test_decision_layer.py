@@ -1,6 +1,6 @@
-"""Decision layer end to end: states, C2 immunity, invariances, lattice/probe, stream == batch.
+"""Decision layer end to end: states, C2 immunity, invariances, lattice/probe, robot == batch.
 
-All evaluations share one padded shape bucket so the jitted evaluator compiles once.
+All evaluations share one padded shape bucket so the jitted layer compiles once per lane set.
 """
 
 import jax
@@ -10,57 +10,25 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mfcl_jax import se2
-from mfcl_jax.decision import (
-    REASONS,
-    DecisionParams,
-    RunInputs,
-    SelectiveInitializer,
-    decision_maps,
-    evaluate,
-    pad_maps,
-    per_run,
-    policy_names,
-    to_frame,
-    variants,
-)
-from mfcl_jax.decision.evaluate import TRACES
+from mfcl_jax.decision import REASONS, DecisionParams, sanitize, to_frame
+from mfcl_jax.decision import layer
+from mfcl_jax.decision.runs import TRACES
+from tests._layer import CAPS, K, J, T, evaluate_runs, evidence_of, lanes_of, maps_of
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, shift, three_rooms, walk
 
-K, J, T, GRID = 8, 16, 192, (340, 340)
-NAMES = policy_names()
-OURS = NAMES.index("ours")
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 # r1 -> r2 -> r1 -> r0 -> r3: the shifted aliases die only once both row ends are visited.
 PATH = [[10, 2.5], [18, 2.5], [10, 2.5], [3, 2.5], [26, 2.5]]
-
-
-def maps_of(fp):
-    return jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4))
-
-
 ROW = maps_of(row_of_rooms())
-P1 = DecisionParams.stack([DecisionParams()])
 
 
-def pad_run(run):
-    t = run["traj"].shape[0]
-    assert t <= T
-    out = dict(run)
-    out["traj"] = np.pad(run["traj"], ((0, T - t), (0, 0)))
-    out["traj_mask"] = np.pad(run["traj_mask"], (0, T - t))
-    for key in ("H", "score", "mask"):
-        a = run[key]
-        pad = [(0, 0), (0, J - a.shape[1])] + [(0, 0)] * (a.ndim - 2)
-        out[key] = np.pad(a, pad)
+def run_all(runs, maps=ROW, params=None):
+    out, names = evaluate_runs(runs, maps, params)
     return out
 
 
-def evaluate_runs(runs, maps=ROW, params=P1):
-    runs = [pad_run(r) for r in runs]
-    fields = [f for f in RunInputs.__dataclass_fields__ if f in runs[0]]
-    b = RunInputs(**{f: jnp.asarray(np.stack([r[f] for r in runs])) for f in fields})
-    out = evaluate(b, maps, None, params, variants())
-    return jax.tree.map(np.asarray, out)
+NAMES = lanes_of()[2].names
+OURS = NAMES.index("ours")
 
 
 def lattice_cands(k, Y):
@@ -81,12 +49,12 @@ def run_of(cand_fn, path=PATH, anchor=A, fp=ROW_FP):
 
 
 def ours(out, k=None):
-    d = jax.tree.map(lambda x: x[0, :, 0, OURS], out)
+    d = jax.tree.map(lambda x: x[0, :, OURS], out)
     return d if k is None else jax.tree.map(lambda x: x[k], d)
 
 
 def test_lattice_ambiguous_then_commit_when_aliases_become_infeasible():
-    out = evaluate_runs([run_of(lattice_cands)])
+    out = run_all([run_of(lattice_cands)])
     d = ours(out)
     states = d.state.tolist()
     amb = [k for k in range(K) if states[k] == 1 and d.kind[k] == 1]
@@ -107,9 +75,9 @@ def test_probe_blocks_commit_while_alias_is_feasible():
     it; ours blocks it while the scans cannot rule it out (AMBIGUOUS translation, period =
     pitch, reason "competitor not ruled out"), and commits once a window sees the end wall
     that the alias would put in the wrong place, no later than the paper's probe."""
-    out = evaluate_runs([run_of(probe_cands)])
+    out = run_all([run_of(probe_cands)])
     idx = {n: i for i, n in enumerate(NAMES)}
-    by = {n: jax.tree.map(lambda x, i=i: x[0, :, 0, i], out) for n, i in idx.items()}
+    by = {n: jax.tree.map(lambda x, i=i: x[0, :, i], out) for n, i in idx.items()}
     d, paper, no_probe = by["ours"], by["paper"], by["no_probe"]
     blocked = [k for k in range(K) if paper.state[k] == 1 and paper.probe_alias[k]]
     assert blocked and all(paper.kind[k] == 1 for k in blocked), paper.state.tolist()
@@ -133,16 +101,14 @@ def test_defer_without_anchors_below_floor_and_unsaturated():
     empty = run_of(lambda k, Y: [])
     low = run_of(lambda k, Y: [(Y, 0.2)])
     one_room = run_of(probe_cands, path=[[9, 1.5], [13, 3.5], [9, 3.5]])
-    params = DecisionParams.stack([DecisionParams(score_floor=0.5)])
-    outs = [evaluate_runs([r], params=params) for r in (empty, low, one_room)]
-    out = jax.tree.map(lambda *x: np.concatenate(x, axis=0), *outs)
-    st_ = out.state[:, :, 0, OURS]
+    out = run_all([empty, low, one_room], params=DecisionParams(score_floor=0.5))
+    st_ = out.state[:, :, OURS]
     assert (st_[:2] == 0).all()
-    assert set(out.reason[0, :, 0, OURS].tolist()) == {1}
-    assert set(out.reason[1, :, 0, OURS].tolist()) == {2}
+    assert set(out.reason[0, :, OURS].tolist()) == {1}
+    assert set(out.reason[1, :, OURS].tolist()) == {2}
     # One room of a row of congruent rooms: unsaturated (DEFER) until b_min = 3 disjoint
     # windows have champions, then saturated but never a commit (its copies stay feasible).
-    assert st_[2, :2].tolist() == [0, 0] and set(out.reason[2, :2, 0, OURS].tolist()) == {4}
+    assert st_[2, :2].tolist() == [0, 0] and set(out.reason[2, :2, OURS].tolist()) == {4}
     assert (st_[2, 2:] != 2).all()
     assert np.isfinite(out.anchor).all()
 
@@ -156,14 +122,12 @@ def test_nan_candidates_are_rejected_and_counted():
     bad["H"][:, 5] = np.nan
     bad["score"][:, 5] = 5.0
     bad["mask"][:, 5] = True
-    H, s, m, n_bad = per_run(
-        bad["H"], bad["score"], bad["mask"], np.arange(K)[None], np.ones((1, K), bool)
-    )
-    assert np.asarray(n_bad).tolist() == [[1] * K]
-    clean = dict(bad, H=np.asarray(H[0]), score=np.asarray(s[0]), mask=np.asarray(m[0]))
-    a, b = evaluate_runs([base]), evaluate_runs([clean])
+    _, _, _, n_bad = sanitize(bad["H"], bad["score"], bad["mask"])
+    assert np.asarray(n_bad).tolist() == [1] * K
+    a, b = run_all([base]), run_all([bad])
     np.testing.assert_array_equal(a.state, b.state)
     assert np.isfinite(b.anchor).all() and np.isfinite(b.c_winner).all()
+    assert b.n_rejected[0, :, OURS].tolist() == list(range(1, K + 1))  # counted, cumulative
 
 
 FIELDS = ("state", "kind", "b1", "b2", "margin", "n_groups", "n_champions")
@@ -177,7 +141,7 @@ def assert_same(a, b, v=slice(0, 5)):
 
 
 BASE = run_of(probe_cands)
-BASE_OUT = evaluate_runs([BASE])
+BASE_OUT = run_all([BASE])
 
 
 @settings(max_examples=6)
@@ -195,7 +159,7 @@ def test_c2_immunity_flooding_below_top1(n, seed):
         run["H"][k, j0 : j0 + m] = np.where(pick[:, None], near_alias, anywhere)
         run["score"][k, j0 : j0 + m] = top * rng.uniform(0.0, 0.999, m)
         run["mask"][k, j0 : j0 + m] = True
-    out = evaluate_runs([run])
+    out = run_all([run])
     assert_same(BASE_OUT, out)
 
 
@@ -205,10 +169,10 @@ def test_support_flips_under_flooding_while_ours_does_not():
         run["H"][k, 3:13] = run["H"][k, 1] + np.linspace(-0.2, 0.2, 10)[:, None] * [1, 1, 0]
         run["score"][k, 3:13] = 0.5
         run["mask"][k, 3:13] = True
-    out = evaluate_runs([run])
+    out = run_all([run])
     assert_same(BASE_OUT, out)
     sup = NAMES.index("support")
-    a0, a1 = BASE_OUT.anchor[0, -1, 0, sup], out.anchor[0, -1, 0, sup]
+    a0, a1 = BASE_OUT.anchor[0, -1, sup], out.anchor[0, -1, sup]
     assert float(se2.distance_pair(a0, A)[0]) < 0.5
     assert float(se2.distance_pair(a1, A)[0]) > 5.0
 
@@ -220,7 +184,7 @@ def test_permutation_invariance(seed):
     run = run_of(lattice_cands)
     perm = rng.permutation(J)
     run2 = dict(run, H=run["H"][:, perm], score=run["score"][:, perm], mask=run["mask"][:, perm])
-    assert_same(evaluate_runs([run]), evaluate_runs([run2]), v=slice(None))
+    assert_same(run_all([run]), run_all([run2]), v=slice(None))
 
 
 def test_rigid_motion_equivariance():
@@ -233,14 +197,14 @@ def test_rigid_motion_equivariance():
     maps_g = maps_of(row_of_rooms().transformed(g))
     run = run_of(lattice_cands)
     run_g = dict(run, H=np.asarray(se2.compose(g, run["H"]), np.float32))
-    a, b = evaluate_runs([run]), evaluate_runs([run_g], maps=maps_g)
+    a, b = run_all([run]), run_all([run_g], maps=maps_g)
     exact = [NAMES.index(n) for n in ("paper", "no_probe", "consensus_only")]
     for f in ("state", "kind", "b1", "b2"):
         np.testing.assert_array_equal(getattr(a, f)[..., exact], getattr(b, f)[..., exact], f)
     first = lambda s: int(np.argmax(np.append(np.asarray(s) == 2, True)))  # noqa: E731
     for n in ("ours", "ours_b2_d1", "ours_b4_d2"):
         i = NAMES.index(n)
-        assert abs(first(a.state[0, :, 0, i]) - first(b.state[0, :, 0, i])) <= 2, n
+        assert abs(first(a.state[0, :, i]) - first(b.state[0, :, i])) <= 2, n
     np.testing.assert_array_equal(a.b1, b.b1)
     moved = np.asarray(se2.compose(g, a.anchor[..., exact, :]))
     dxy, dth = se2.distance_pair(moved, b.anchor[..., exact, :])
@@ -257,7 +221,7 @@ def test_multimodal_in_non_congruent_rooms():
     def cands(k, Y):  # champions split between two rooms, no congruent offset
         return [(Y, 1.0), (shift(Y, 7.0), 1.1 if k % 2 else 0.8)]
 
-    out = evaluate_runs([make_run(walk(path), A, K, cands, J=J, fp=three_rooms())], maps=maps3)
+    out = run_all([make_run(walk(path), A, K, cands, J=J, fp=three_rooms())], maps=maps3)
     d = ours(out)
     assert (d.kind[d.state == 1] != 1).all()
     assert (d.kind == 2).any()
@@ -275,8 +239,8 @@ def test_a_runner_up_group_the_scans_rule_out_does_not_hold_the_margin():
         return [(Y, 1.0), (shift(Y, -7.0), 1.1 if k % 2 else 0.8)]
 
     run = make_run(walk(path), A, K, cands, J=J, fp=three_rooms())
-    out = evaluate_runs([run], maps=maps3)
-    paper = jax.tree.map(lambda x: x[0, :, 0, NAMES.index("paper")], out)
+    out = run_all([run], maps=maps3)
+    paper = jax.tree.map(lambda x: x[0, :, NAMES.index("paper")], out)
     d = ours(out)
     assert 2 not in paper.state.tolist()
     assert paper.b2[4] == 2 and paper.b1[4] == 3  # tied in the raw counts
@@ -289,44 +253,36 @@ def test_a_runner_up_group_the_scans_rule_out_does_not_hold_the_margin():
 
 def test_threshold_sweep_does_not_recompile():
     run = run_of(lattice_cands)
-    evaluate_runs([run])
-    before = TRACES["evaluate"]
+    run_all([run])
+    before = TRACES["scan_runs"]
     for tau_c in (0.3, 0.6, 0.9):
-        evaluate_runs(
-            [run], params=DecisionParams.stack([DecisionParams(tau_c=tau_c, delta_xy=1.0)])
-        )
-    assert TRACES["evaluate"] == before
+        run_all([run], params=DecisionParams(tau_c=tau_c, delta_xy=1.0))
+    assert TRACES["scan_runs"] == before
 
 
-def test_frame_has_one_row_per_run_window_variant():
-    df = to_frame(BASE_OUT, NAMES)
+def test_frame_has_one_row_per_run_window_lane():
+    spec = lanes_of()[2]
+    df = to_frame(BASE_OUT, spec)
     assert len(df) == K * len(NAMES)
     assert {"state", "kind", "x", "y", "yaw_deg", "tau_x", "B1", "B2", "margin"} <= set(df.columns)
 
 
-def test_stream_equals_batch():
+def test_a_robot_calling_update_decides_as_the_batch():
+    """The robot's path (one jitted ``update`` per window, unbatched) and the batch's (``vmap``
+    over runs of ``lax.scan(update)``) are one function: the same decisions."""
     run = run_of(lattice_cands)
-    out = ours(evaluate_runs([run]))
-    maps = pad_maps(decision_maps(row_of_rooms()), GRID, 4)  # the batch path's padded maps
-    init = SelectiveInitializer(maps, DecisionParams(), k_cap=4, j_cap=J, t_cap=T, rivals=None)
-    traj, prev = run["traj"], 0
-    X = run["X"]
+    out = ours(run_all([run]))
+    p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
+    maps = jax.tree.map(lambda a: a[0], ROW)
+    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
+    step = jax.jit(layer.update)
+    ev = evidence_of(run)
     for k in range(K):
-        e = int(run["window_end"][k])
-        m = run["mask"][k]
-        Y = np.asarray(se2.compose(run["H"][k][m], X[k]))
-        ev = run["ev_mask"][k]
-        evidence = (run["ev_points"][k][ev], run["ev_origins"][k][ev])
-        d = init.update(
-            Y, run["score"][k][m], X[k], traj[prev : e + 1], t=float(k), evidence=evidence
-        )
-        prev = e + 1
-        assert ["DEFER", "AMBIGUOUS", "COMMIT"][out.state[k]] == d.state
-        assert d.diagnostics["B1"] == out.b1[k] and d.diagnostics["B2"] == out.b2[k]
+        state, d = step(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        d = jax.tree.map(lambda a: np.asarray(a[0]), d)
+        assert int(d.state) == out.state[k] and int(d.kind) == out.kind[k], k
+        assert int(d.b1) == out.b1[k] and int(d.b2) == out.b2[k]
         np.testing.assert_allclose(d.anchor, out.anchor[k], atol=1e-4)
-        assert (d.tau is None) == (out.kind[k] != 1)
-        assert '"state"' in d.to_json()
-    assert init.H.shape[0] == 8  # grew by doubling
 
 
 def _brute_disjoint(members, start, end):
@@ -377,11 +333,9 @@ def test_three_overlapping_windows_are_one_vote():
 def test_a_path_that_leaves_the_map_is_never_committed():
     """The front-end agrees on one anchor in every window, but under it the odometry walks
     out of the building through its end wall: a typed DEFER with its reason, never a commit."""
-    from mfcl_jax.decision.state import REASONS
-
     out_path = [[3, 2.5], [26, 2.5], [40, 2.5]]  # the row ends at x = 4 pitches
     run = make_run(walk(out_path, step=40.0 / (T - 1)), A, K, probe_cands, J=J, fp=ROW_FP)
-    d = ours(evaluate_runs([run]))
+    d = ours(run_all([run]))
     names = ["DEFER", "AMBIGUOUS", "COMMIT"]
     states = [names[s] for s in d.state]
     assert "COMMIT" not in states[-3:], states  # once the path is outside, no commit stands
@@ -391,4 +345,4 @@ def test_a_path_that_leaves_the_map_is_never_committed():
     # the same candidates along a path that stays inside commit
     inside = make_run(walk([[3, 2.5], [26, 2.5]], step=23.0 / (T - 1)), A, K, probe_cands, J=J,
                       fp=ROW_FP)  # fmt: skip
-    assert names[int(ours(evaluate_runs([inside])).state[-1])] == "COMMIT"
+    assert names[int(ours(run_all([inside])).state[-1])] == "COMMIT"

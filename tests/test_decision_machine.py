@@ -9,9 +9,21 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax.decision import machine
-from mfcl_jax.decision.state import AMBIGUOUS, COMMIT, DEFER, REASONS, DecisionParams, Decisions
+from mfcl_jax.decision.outcome import AMBIGUOUS, COMMIT, DEFER, REASONS, Decision
+from mfcl_jax.decision.params import DecisionParams
 
 P = DecisionParams().as_arrays()
+
+
+@jax.jit
+def _track(raw, H, score, mask, X, use_gate):
+    """The machine over a sequence of windows (``machine.step`` per window, as the layer)."""
+
+    def body(h, xs):
+        d, *newest = xs
+        return machine.step(h, d, newest, P, use_gate)
+
+    return jax.lax.scan(body, machine.initial(), (raw, H, score, mask, X))[1]
 
 
 def _raw(states, anchors):
@@ -19,7 +31,7 @@ def _raw(states, anchors):
     k = len(states)
     z = jnp.zeros(k, jnp.float32)
     i = jnp.zeros(k, jnp.int32)
-    return Decisions(
+    return Decision(
         state=jnp.asarray(states, jnp.int32),
         kind=i,
         anchor=jnp.asarray(anchors, jnp.float32),
@@ -41,6 +53,10 @@ def _raw(states, anchors):
         competitor=jnp.zeros((k, 3)),
         has_competitor=jnp.zeros(k, bool),
         n_live=i,
+        certified=jnp.zeros(k, bool),
+        searched=jnp.zeros(k, bool),
+        n_rejected=i,
+        dropped=i,
     )
 
 
@@ -50,7 +66,7 @@ def _run(states, anchors, c_winner=None):
         raw = dataclasses.replace(raw, c_winner=jnp.asarray(c_winner, jnp.float32))
     k = len(states)
     H, score, mask = jnp.zeros((k, 1, 3)), jnp.zeros((k, 1)), jnp.zeros((k, 1), bool)
-    out = machine.track(raw, H, score, mask, jnp.zeros((k, 3)), P, jnp.bool_(True))
+    out = _track(raw, H, score, mask, jnp.zeros((k, 3)), jnp.bool_(True))
     return jax.tree.map(np.asarray, out)
 
 
@@ -104,8 +120,8 @@ def test_the_newest_window_candidate_tracks_a_held_anchor_without_champions():
     raw = _raw(states, [A, np.zeros(3), np.zeros(3), np.zeros(3)])
     drifted = np.stack([A + [0.1 * i, 0.0, 0.01 * i] for i in range(k)])
     H = jnp.asarray(drifted[:, None, :], jnp.float32)
-    out = machine.track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), jnp.zeros((k, 3)), P,
-                        jnp.bool_(True))  # fmt: skip
+    out = _track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), jnp.zeros((k, 3)),
+                 jnp.bool_(True))  # fmt: skip
     out = jax.tree.map(np.asarray, out)
     assert list(out.state) == [COMMIT] * 4
     assert np.all(np.diff(out.anchor[:, 0]) > 0)  # it follows the drift...
@@ -129,7 +145,7 @@ def test_noisy_registrations_do_not_walk_a_commit_off():
         raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
         h, s = jnp.asarray(H, jnp.float32), jnp.asarray(score, jnp.float32)
         ok = jnp.ones((k, j), bool)
-        out = machine.track(raw, h, s, ok, jnp.zeros((k, 3)), P, jnp.bool_(True))
+        out = _track(raw, h, s, ok, jnp.zeros((k, 3)), jnp.bool_(True))
         state, anchor = np.asarray(out.state), np.asarray(out.anchor)
         n = int(np.argmin(state == COMMIT)) if (state != COMMIT).any() else k
         held.append(n)
@@ -152,13 +168,13 @@ def test_a_commit_the_newest_registration_leaves_behind_is_stale():
     raw = _raw([COMMIT] + [DEFER] * (k - 1), [A] + [np.zeros(3)] * (k - 1))
     H = jnp.asarray(np.stack(turn)[:, None, :], jnp.float32)
     x = jnp.asarray(np.tile([3.0, 1.0, 0.2], (k, 1)), jnp.float32)
-    out = machine.track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), x, P, jnp.bool_(True))
+    out = _track(raw, H, jnp.ones((k, 1)), jnp.ones((k, 1), bool), x, jnp.bool_(True))
     out = jax.tree.map(np.asarray, out)
     assert list(out.state[:3]) == [COMMIT] * 3
     assert out.state[3] == DEFER and REASONS[int(out.reason[3])] == "commit stale"
     assert out.state[4] == DEFER  # the machine starts over; the per-prefix rule says DEFER
     # a registration elsewhere (an alias 7 m away) is not staleness: the commit holds
     far = np.stack(turn[:3] + [FAR, FAR])
-    out = machine.track(raw, jnp.asarray(far[:, None, :], jnp.float32), jnp.ones((k, 1)),
-                        jnp.ones((k, 1), bool), x, P, jnp.bool_(True))  # fmt: skip
+    out = _track(raw, jnp.asarray(far[:, None, :], jnp.float32), jnp.ones((k, 1)),
+                  jnp.ones((k, 1), bool), x, jnp.bool_(True))  # fmt: skip
     assert list(np.asarray(out.state)) == [COMMIT] * k

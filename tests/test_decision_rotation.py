@@ -13,23 +13,20 @@ Layout (centre lines, metres; unit B is ``(x, y) -> (22 - x, 8 - y)`` of unit A)
 """
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from shapely.geometry import LineString, Polygon
 
 from mfcl_jax import se2
-from mfcl_jax.decision import (
-    REASONS,
-    DecisionParams,
-    SelectiveInitializer,
-    decision_maps,
-    pad_maps,
-    to_frame,
-)
+from mfcl_jax.decision import REASONS, decision_maps, layer, to_frame
 from mfcl_jax.decision.lattice import ROTATION, TRANSLATION
+from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.symmetry import rotational_motions
 from mfcl_jax.floorplan import Door, Floorplan, Room
-from tests.test_decision_layer import GRID, NAMES, J, K, T, evaluate_runs, ours
+from mfcl_jax.robot.localizer import record_of
+from tests._layer import CAPS, J, K, evaluate_runs, evidence_of, lanes_of, maps_of
+from tests.test_decision_layer import NAMES, ours
 from tests.test_decision_scenes import WT, make_run, row_of_rooms, three_rooms, walk
 
 G = np.array([22.0, 8.0, np.pi])  # the building's self-motion: half turn about (11, 4)
@@ -83,8 +80,7 @@ def duplex():
 
 
 FP = duplex()
-MAPS = jax.tree.map(np.asarray, pad_maps(decision_maps(FP), GRID, N_ROOMS))
-P1 = DecisionParams.stack([DecisionParams()])
+MAPS = maps_of(FP, N_ROOMS)
 INSIDE_A = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2, 2], [2, 6]]  # LA -> BA -> LA
 INTO_S = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2.5, 6], [2.5, 9.5]]  # ... -> S
 BOTH_UNITS = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [11, 1.5], [14.5, 1.5], [14.5, 6]]
@@ -105,7 +101,7 @@ def run(path, cands=true_wins):
 
 
 def evaluate(*runs):
-    return evaluate_runs(list(runs), maps=MAPS, params=P1)
+    return evaluate_runs(list(runs), MAPS)[0]
 
 
 def test_rotational_motion_of_the_building():
@@ -114,11 +110,11 @@ def test_rotational_motion_of_the_building():
     np.testing.assert_allclose(mots[0, :2], G[:2], atol=1e-6)
     assert abs(abs(mots[0, 2]) - np.pi) < 1e-9
     assert support[0] == 4  # LA<->LB, BA<->BB; S and C have no image
-    m = decision_maps(FP)
-    assert m.motions.shape == (8, 3) and m.motions_mask.sum() == 1
+    m = decision_maps(FP).sym
+    assert m.motions.shape == (1, 8, 3) and m.motions_mask.sum() == 1
     # translated copies and bare rooms give no rotational motion
     for fp in (row_of_rooms(), three_rooms()):
-        assert not decision_maps(fp).motions_mask.any()
+        assert not decision_maps(fp).sym.motions_mask.any()
 
 
 def test_quarter_turn_pair_gives_a_motion_and_its_inverse():
@@ -131,8 +127,8 @@ def test_quarter_turn_pair_gives_a_motion_and_its_inverse():
     g = mots[np.argmax(mots[:, 2])]
     np.testing.assert_allclose(g, [20.0, 0.0, np.pi / 2], atol=1e-6)
     assert support.tolist() == [1, 1]
-    capped = pad_maps(decision_maps(fp, max_motions=2), (100, 240), 2, n_motions=4)
-    assert capped.motions.shape == (4, 3) and capped.motions_mask.sum() == 2
+    capped = pad_maps(decision_maps(fp, max_motions=2), (100, 240), 2, n_motions=4).sym
+    assert capped.motions.shape == (1, 4, 3) and capped.motions_mask.sum() == 2
     with pytest.raises(ValueError, match="rotational motions"):
         decision_maps(fp, max_motions=1)
 
@@ -153,8 +149,8 @@ def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_ap
         # or two when the champions are true)
         assert rot.sum() >= (1 if r == 0 else 3), (d.state.tolist(), d.kind.tolist())
         assert (d.kind != TRANSLATION).all()
-        assert out.state[r, -1, 0, no_probe] == 2  # without the probe it commits
-        assert float(se2.distance_pair(out.anchor[r, -1, 0, no_probe], anchor)[0]) < 0.05
+        assert out.state[r, -1, no_probe] == 2  # without the probe it commits
+        assert float(se2.distance_pair(out.anchor[r, -1, no_probe], anchor)[0]) < 0.05
         for k in np.nonzero(rot)[0]:
             assert d.probe_alias[k] and d.probe_c[k] >= 0.5  # the gate admits the twin
             np.testing.assert_allclose(d.tau[k], 0.0)
@@ -164,7 +160,7 @@ def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_ap
             assert d.state[-1] == 2 and float(se2.distance_pair(d.anchor[-1], A)[0]) < 0.05
         else:
             assert (d.state != 2).all() and REASONS[int(d.reason[-1])] == "winner contradicted"
-    df = to_frame(out, NAMES)
+    df = to_frame(out, lanes_of()[2])
     row = df[(df.run == 0) & (df.k == 3) & (df.policy == "ours")].iloc[0]
     assert row.kind == "rotation" and np.isnan(row.tau_x) and np.isnan(row.tau_y)
     # the table lists the twin's anchor as the competing explanation
@@ -210,37 +206,33 @@ def test_c2_immunity_of_the_rotation_verdict():
 
 
 @pytest.mark.parametrize("path", [INSIDE_A, INTO_S], ids=["inside_a", "storage"])
-def test_stream_equals_batch_with_rotation(path):
+def test_robot_equals_batch_with_rotation(path):
+    """One ``update`` per window (the robot) decides as the batch scan, and the decisions
+    file line says the rotation: no period, the twin listed as the alternative."""
     r = run(path)
     out = ours(evaluate(r))
-    init = SelectiveInitializer(MAPS, DecisionParams(), k_cap=4, j_cap=J, t_cap=T, rivals=None)
-    traj, prev, X = r["traj"], 0, r["X"]
+    p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
+    maps = jax.tree.map(lambda a: a[0], MAPS)
+    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
+    step = jax.jit(layer.update)
+    ev = evidence_of(r)
     kinds = []
     for k in range(K):
-        e = int(r["window_end"][k])
-        m = r["mask"][k]
-        Y = np.asarray(se2.compose(r["H"][k][m], X[k]))
-        ev = r["ev_mask"][k]
-        evidence = (r["ev_points"][k][ev], r["ev_origins"][k][ev])
-        d = init.update(
-            Y, r["score"][k][m], X[k], traj[prev : e + 1], t=float(k), evidence=evidence
-        )
-        prev = e + 1
-        assert ["DEFER", "AMBIGUOUS", "COMMIT"][out.state[k]] == d.state
-        assert d.kind == {0: None, 1: "translation", 2: "multimodal", 3: "rotation"}[out.kind[k]]
+        state, d = step(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        d = jax.tree.map(lambda a: np.asarray(a[0]), d)
+        assert int(d.state) == out.state[k] and int(d.kind) == out.kind[k]
         np.testing.assert_allclose(d.anchor, out.anchor[k], atol=1e-4)
-        line = d.to_json()
-        if d.kind == "rotation":
-            assert '"symmetry": "rotation"' in line and '"tau": null' in line
-            assert np.allclose(d.diagnostics["alias_motion"][:2], G[:2], atol=1e-3)
+        line = record_of(d, k + 1, float(k), r["X"][k])
+        if int(d.kind) == ROTATION:
+            assert line["symmetry"] == "rotation" and line["tau"] is None
+            assert np.allclose(np.asarray(d.alias_motion)[:2], G[:2], atol=1e-3)
             # the competing explanation listed is the twin, g T*, as in the batch
             twin = np.asarray(se2.compose(G, np.asarray(d.anchor, np.float32)))
-            dxy, dth = se2.distance_pair(np.asarray(d.diagnostics["competitor"]), twin)
+            dxy, dth = se2.distance_pair(np.asarray(d.competitor), twin)
             assert float(dxy) < 1e-2 and float(dth) < 1e-3
-            np.testing.assert_allclose(d.diagnostics["competitor"], out.competitor[k], atol=1e-4)
-        else:
-            assert d.diagnostics["alias_motion"] is None
-        if d.state != "AMBIGUOUS":
-            assert d.diagnostics["competitor"] is None
-        kinds.append(d.kind)
+            np.testing.assert_allclose(d.competitor, out.competitor[k], atol=1e-4)
+            assert len(line["alternatives"]) == 2
+        if line["state"] != "AMBIGUOUS":
+            assert line["alternatives"] is None
+        kinds.append(line["symmetry"])
     assert kinds[-1] is None and "rotation" in kinds  # ambiguous until the scans tell

@@ -71,7 +71,7 @@ def to_odom(traj_b, anchor):
 def evidence_at(fp, poses):
     """What a clean 360-beam LiDAR sees of ``fp``'s walls at ``poses (K, 3)``: the evidence
     samples ``(points, origins, mask)`` ``(K, P, ...)`` in each pose's frame."""
-    from mfcl_jax.batch import evidence_sample
+    from mfcl_jax.windows.arrays import evidence_sample
     from mfcl_jax.sim import LidarParams, cast, scan_points
 
     lidar = LidarParams(n_beams=360, sigma=0.0, dropout=0.0)
@@ -91,7 +91,7 @@ def make_run(traj_b, anchor, n_windows, cand_fn, J=8, fp=None):
     Returns a dict of host arrays for one run (K, J padded).
     """
     from mfcl_jax import se2
-    from mfcl_jax.batch import EVIDENCE_POINTS
+    from mfcl_jax.windows.arrays import EVIDENCE_POINTS
 
     traj_l = to_odom(traj_b, anchor)
     t = len(traj_l)

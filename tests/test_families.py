@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import LineString, MultiLineString
 
-from mfcl_jax.evaluate.plots_scene import plot_family
-from mfcl_jax.floorplan.families import (
+from mfcl_jax.report.plots_scene import plot_family
+from mfcl_jax.sim.families import (
     FAMILIES,
     NotApplicable,
     make_scene,
@@ -23,7 +23,7 @@ from mfcl_jax.floorplan.families import (
     write_family_geojson,
 )
 from mfcl_jax.floorplan.geojson import load_geojson
-from mfcl_jax.floorplan.scenes import Scene
+from mfcl_jax.sim.scenes import Scene
 from mfcl_jax.sim.trajectory import sample_path
 
 SEEDS = range(5)

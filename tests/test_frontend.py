@@ -13,10 +13,10 @@ from _frontend_synth import batch, make_submap
 from shapely.geometry import box
 
 from mfcl_jax import se2
-from mfcl_jax.batch import SubmapBatch
+from mfcl_jax.windows.arrays import SubmapBatch
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
 from mfcl_jax.floorplan.raster import Rasters, bilinear, pad_to
-from mfcl_jax.floorplan.scenes import get_scene
+from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.frontend import (
     FrontendParams,
     build_features,

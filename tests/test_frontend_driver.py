@@ -10,7 +10,7 @@ import pytest
 from _frontend_synth import batch, make_submap
 
 from mfcl_jax import se2
-from mfcl_jax.floorplan.scenes import get_scene
+from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.frontend import build_features, make_register, registry
 from mfcl_jax.frontend.driver import FrontEnd
 

@@ -148,13 +148,16 @@ def test_dataset_write_is_atomic(tmp_path):
     assert len(load_dataset(tmp_path / "ds")) == 3
 
 
-def test_dataset_scan_without_odometry(tmp_path):
-    out, *_ = _write(tmp_path)
+def test_dataset_scan_names_are_times_as_numbers(tmp_path):
+    # Issue 29: a scan named 0.50.pcd is the odometry line 0.5 (refused before).
+    out, t, _, odom, _ = _write(tmp_path)
     (out / "scans" / "0.5.pcd").rename(out / "scans" / "0.50.pcd")
-    with pytest.raises(DataError) as e:
+    ds = load_dataset(out)
+    assert ds.time_strings == ("0", "0.50", "1")
+    np.testing.assert_allclose(ds.odometry, odom, atol=1e-7)
+    (out / "scans" / "x.pcd").write_bytes((out / "scans" / "1.pcd").read_bytes())
+    with pytest.raises(DataError, match=r"x\.pcd: a scan file is named by its time.*got 'x'"):
         load_dataset(out)
-    msg = str(e.value)
-    assert "0.50.pcd" in msg and "no odometry line" in msg and "'0.5'" in msg
 
 
 def test_dataset_non_monotonic_odometry(tmp_path):

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mfcl_jax.floorplan.scenes import Scene, rect_segments, symmetric_bays, three_rooms
+from mfcl_jax.sim.scenes import Scene, rect_segments, symmetric_bays, three_rooms
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.sim.lidar3d import Lidar3DParams, _cast3d_jit, beam_directions, cast3d, livox_mid360
 from mfcl_jax.sim.raycast import LidarParams, cast, scan_points

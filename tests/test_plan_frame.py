@@ -72,7 +72,7 @@ def test_far_plan_gives_the_same_rasters_and_features(tmp_path, shift):
 def test_decimal_plan_far_away_gives_the_same_rasters(tmp_path):
     """Coordinates in decimal metres (11.35) cannot be held exactly at 5e6 m; the loader's
     rounding to 10 nm gives back the plan drawn near the origin, cell for cell."""
-    from mfcl_jax.floorplan.scenes import get_scene
+    from mfcl_jax.sim.scenes import get_scene
 
     plan = get_scene("three_rooms").floorplan
     near = load_floorplan(save_geojson(plan, tmp_path / "near.geojson"))
@@ -116,7 +116,7 @@ class _StubLocalizer:
 
     def run(self, seq):
         from mfcl_jax.decision.stream import Decision
-        from mfcl_jax.localizer import WindowResult
+        from mfcl_jax.robot.localizer import WindowResult
 
         cx, cy = (float(v) for v in self.fp.room_centroids[0])
         for k in (1, 2):
@@ -135,7 +135,7 @@ def test_cli_writes_anchors_in_the_plan_frame(tmp_path, monkeypatch, capsys, shi
     from mfcl_jax.sources import write_dataset
 
     # (the package re-exports a function named `localize`: fetch the module itself)
-    monkeypatch.setattr(import_module("mfcl_jax.localizer"), "Localizer", _StubLocalizer)
+    monkeypatch.setattr(import_module("mfcl_jax.robot.localizer"), "Localizer", _StubLocalizer)
     near = dyadic_plan()
     t = [0.0, 1.0]
     ds = write_dataset(tmp_path / "ds", near, t, [np.ones((3, 2))] * 2, np.zeros((2, 3)))

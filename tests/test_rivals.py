@@ -1,28 +1,21 @@
 """Rivals of a commit: the global search of the whole path, and what the certification does
-with what it finds (decision.rivals, certify, driver, stream)."""
+with what it finds (decision.rivals, certify, layer)."""
+
+from functools import lru_cache
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import (
-    REASONS,
-    DecisionParams,
-    RunInputs,
-    decision_maps,
-    evaluate,
-    pad_maps,
-    policy_names,
-    variants,
-)
-from mfcl_jax.decision.evaluate import NO_RIVAL
-from mfcl_jax.decision.rivals import RIVAL_SLOTS, path_cloud, rival_fields, search_rivals
+from mfcl_jax.decision import REASONS, DecisionParams, decision_maps, layer
+from mfcl_jax.decision.maps import pad_maps
+from mfcl_jax.decision.rivals import RivalParams, image_size, path_cloud, rival_fields, search
+from tests._layer import CAPS, evidence_of, lanes_of
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
-K, J, T = 8, 4, 192
-OURS = policy_names().index("ours")
+K, J = 8, 16
 
 
 def truth_only(k, y):
@@ -37,52 +30,61 @@ def test_path_cloud_places_each_window_by_its_odometry_pose():
     ev_m = np.zeros((2, P), bool)
     ev_m[:, 0] = True
     X = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, np.pi / 2]])
-    pts, free = path_cloud(ev_p, ev_o, ev_m, X, 1)
-    np.testing.assert_allclose(pts, [[1.0, 0.0], [2.0, 1.0]], atol=1e-12)
-    # free samples along each ray (0.3, 0.6, 0.85 of the way) and the sensor positions
-    assert len(free) == 2 * 3 + 2
-    np.testing.assert_allclose(free[-1], [2.0, 0.0])
-    only_first, _ = path_cloud(ev_p, ev_o, ev_m, X, 0)
-    assert len(only_first) == 1
+    rp = RivalParams(max_points=8, max_free=16)
+    pts, pok, free, fok = (np.asarray(a) for a in path_cloud(ev_p, ev_o, ev_m, X, rp))
+    np.testing.assert_allclose(pts[pok], [[1.0, 0.0], [2.0, 1.0]], atol=1e-6)
+    # free samples along each ray (0.3, 0.6, 0.85 of the way) and the distinct sensor positions
+    assert fok.sum() == 2 * 3 + 2
+    assert any(np.allclose(f, [2.0, 0.0]) for f in free[fok])
+    ev_m[1] = False
+    only_first = np.asarray(path_cloud(ev_p, ev_o, ev_m, X, rp)[1])
+    assert only_first.sum() == 1
 
 
 def test_search_places_an_asymmetric_path_where_it_was_walked():
     fp = three_rooms()
     run = make_run(walk([[3, 3], [10, 3], [17, 3], [10, 3]]), A, K, truth_only, J=J, fp=fp)
-    pts, free = path_cloud(run["ev_points"], run["ev_origins"], run["ev_mask"], run["X"], K - 1)
-    anchors, scores = search_rivals(pts, free, rival_fields(fp))
-    assert len(anchors) >= 1 and np.all(np.diff(scores) <= 0)  # best first
-    dxy, dth = se2.distance_pair(jnp.asarray(anchors[0]), jnp.asarray(A))
+    fields = jax.tree.map(jnp.asarray, rival_fields(fp))
+    find = jax.jit(search, static_argnames=("n_img",))
+    ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]
+    anchors, ok = find(*ev, jnp.asarray(run["X"], jnp.float32), fields, n_img=image_size([fp]))
+    assert bool(ok[0])
+    dxy, dth = se2.distance_pair(anchors[0], jnp.asarray(A))
     assert float(dxy) < 0.15 and np.rad2deg(float(dth)) < 1.0
     # an empty path has no rivals (and no error)
-    none, _ = search_rivals(np.zeros((0, 2)), np.zeros((0, 2)), rival_fields(fp))
-    assert none.shape == (0, 3)
+    _, none = find(ev[0], ev[1], jnp.zeros_like(ev[2]), jnp.asarray(run["X"], jnp.float32),
+                   fields, n_img=image_size([fp]))  # fmt: skip
+    assert not np.asarray(none).any()
 
 
-def _decide(run, maps, rivals=None, found_at=NO_RIVAL, params=None):
-    r = dict(run)
-    r.pop("Y_true")
-    t = r["traj"].shape[0]
-    r["traj"] = np.pad(r["traj"], ((0, T - t), (0, 0)))
-    r["traj_mask"] = np.pad(r["traj_mask"], (0, T - t))
-    riv = np.zeros((RIVAL_SLOTS, 3), np.float32)
-    riv_k = np.full(RIVAL_SLOTS, NO_RIVAL, np.int32)
-    if rivals is not None:
-        riv[: len(rivals)], riv_k[: len(rivals)] = rivals, found_at
-    r.update(rivals=riv, rivals_k=riv_k)
-    b = RunInputs(
-        **{f: jnp.asarray(np.asarray(r[f])[None]) for f in RunInputs.__dataclass_fields__}
-    )
-    p = DecisionParams.stack([params or DecisionParams()])
-    out = evaluate(b, maps, None, p, variants())
-    return jax.tree.map(lambda x: np.asarray(x)[0, :, 0, OURS], out)
+@lru_cache(maxsize=None)
+def _step():
+    return jax.jit(layer.update)
+
+
+def _decide(run, maps, rival=None, found_at=None, params=None):
+    """Our lane window by window (one ``update`` each); ``rival`` is put into the run's rival
+    slots before window ``found_at`` (as a search there would)."""
+    p, lanes, spec = lanes_of(params, ours=("ours",), baselines=False)
+    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
+    ev = evidence_of(run)
+    out = []
+    for k in range(K):
+        if rival is not None and k == found_at:
+            state = layer.LayerState(**{**state.__dict__,
+                                        "rivals": state.rivals.at[0].set(jnp.asarray(rival)),
+                                        "rivals_ok": state.rivals_ok.at[0].set(True)})  # fmt: skip
+        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        out.append(jax.tree.map(lambda a: np.asarray(a[0]), d))
+    return jax.tree.map(lambda *x: np.stack(x), *out)
 
 
 def _row_walk():
     """Four identical rooms in a row (no congruence probe), walked to and fro along y = 2.5
     in the first two: ``(maps, run)``."""
     fp = row_of_rooms()
-    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4))
+    m = pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4, n_motions=8, n_offsets=32)
+    maps = jax.tree.map(jnp.asarray, m)
     run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
                    fp=fp)  # fmt: skip
     return maps, run
@@ -104,16 +106,16 @@ def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
     assert base.state[-1] == 2, base.state.tolist()
     k_c = int(np.argmax(base.state == 2))
     shifted = np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), A))
-    late = _decide(run, maps, shifted[None], k_c + 1, p)
+    late = _decide(run, maps, shifted, k_c + 1, p)
     np.testing.assert_array_equal(late.state[: k_c + 1], base.state[: k_c + 1])
-    at = _decide(run, maps, shifted[None], k_c, p)
+    at = _decide(run, maps, shifted, k_c, p)
     np.testing.assert_array_equal(at.state[:k_c], base.state[:k_c])
     assert at.state[k_c] == 1 and at.kind[k_c] == 1, (at.state.tolist(), at.kind.tolist())
     assert REASONS[int(at.reason[k_c])] == "competitor not ruled out"
     assert abs(abs(float(at.tau[k_c][0])) - PITCH) < 0.2
     # a rival the windows contradict (a half-turn of the path) changes nothing
     turned = np.asarray(se2.compose(np.array([28.0, 5.0, np.pi]), A))
-    dead = _decide(run, maps, turned[None], 0, p)
+    dead = _decide(run, maps, turned, 0, p)
     np.testing.assert_array_equal(dead.state, base.state)
 
 
@@ -149,7 +151,7 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     base = _decide(run, maps)
     assert base.state[-1] == 2
     k_c = int(np.argmax(base.state == 2))
-    at = _decide(run, maps, np.asarray(shifted)[None], k_c)
+    at = _decide(run, maps, np.asarray(shifted), k_c)
     np.testing.assert_array_equal(at.state, base.state)
 
 
@@ -188,35 +190,29 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     assert (sb[:, 0] - sb[:, 1]).max() > window.max()
 
 
-def test_stream_and_batch_search_at_the_same_prefixes_and_agree(monkeypatch):
-    """A robot's stream (``Localizer``) and the batch path (``localize_batch``) search for
-    rivals at the same prefixes (where the layer is about to commit) and report the same
-    decisions."""
-    from mfcl_jax.decision import rivals
-    from mfcl_jax.floorplan.scenes import three_rooms as scene_three_rooms
-    from mfcl_jax.localize_batch import localize_batch
-    from mfcl_jax.localizer import Localizer
+def test_robot_and_batch_search_at_the_same_windows_and_agree():
+    """A robot (``Localizer``: one jitted register-and-update per window) and the batch path
+    (``decision.runs``: every run scanned at once) search for rivals at the same windows
+    (where the layer is about to commit) and report the same decisions."""
+    from mfcl_jax import windows as W
+    from mfcl_jax.decision.runs import decide
+    from mfcl_jax.frontend.driver import FrontEnd
+    from mfcl_jax.robot.localizer import Localizer
+    from mfcl_jax.sim.scenes import three_rooms as scene_three_rooms
     from mfcl_jax.sources.simulated import simulate
 
     scene = scene_three_rooms()
     rec = simulate(scene, [next(iter(scene.trajectories))], [0])[0]
     fp = scene.floorplan
-    calls = {"batch": [], "stream": []}
-    phase = ["batch"]  # both paths search through rivals.search_into: calls split by phase
-    real = rivals.search_rivals
-
-    def spy(points, free, fields, p=None, seed=0):
-        calls[phase[0]].append(len(points))
-        return real(points, free, fields) if p is None else real(points, free, fields, p)
-
-    monkeypatch.setattr(rivals, "search_rivals", spy)
-    batch = localize_batch([fp], [rec.seq])[0].records
-    phase[0] = "stream"
-    online = [r.record() for r in Localizer(fp).run(rec.seq)]
-    assert calls["batch"] and calls["batch"] == calls["stream"]
-    assert [d["state"] for d in batch] == [d["state"] for d in online]
-    assert "COMMIT" in [d["state"] for d in online]
-    for a, b in zip(batch, online, strict=True):
-        if a["anchor"] is not None:
-            np.testing.assert_allclose(list(a["anchor"].values()), list(b["anchor"].values()),
-                                       atol=1e-3)  # fmt: skip
+    online = list(Localizer(fp).run(rec.seq))
+    wins = W.cut_many([(rec.seq, W.WindowParams())])
+    batch = W.pack([(rec.seq, wins[0], 0)], capacity=4096)
+    cands = FrontEnd([fp], chunk=1).register(batch.submaps, batch.building)
+    frame, tm = decide(batch, cands, [fp], ours=("ours",), baselines=False)
+    frame = frame.sort_values("k")
+    searched = [r.k for r in online if bool(r.decision.searched)]
+    assert searched and searched == frame.loc[frame.searched, "k"].tolist()
+    states = [{0: "DEFER", 1: "AMBIGUOUS", 2: "COMMIT"}[int(r.decision.state)] for r in online]
+    assert states == frame.state.tolist() and "COMMIT" in states
+    for r, row in zip(online, frame.itertuples(), strict=True):
+        np.testing.assert_allclose(np.asarray(r.decision.anchor)[:2], [row.x, row.y], atol=1e-3)

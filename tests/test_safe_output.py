@@ -147,11 +147,11 @@ def no_work(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("the run started before its output was checked")
 
-    import mfcl_jax.cli_inputs
+    import mfcl_jax.cli.inputs
     import mfcl_jax.floorplan.load
     import mfcl_jax.sources.simulated
 
-    monkeypatch.setattr(mfcl_jax.cli_inputs, "load_input", boom)
+    monkeypatch.setattr(mfcl_jax.cli.inputs, "load_input", boom)
     monkeypatch.setattr(mfcl_jax.floorplan.load, "load_floorplan", boom)
     monkeypatch.setattr(mfcl_jax.sources.simulated, "simulate_dataset", boom)
 

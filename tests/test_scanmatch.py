@@ -8,7 +8,7 @@ import numpy as np
 
 from mfcl_jax import se2
 from mfcl_jax import windows as W
-from mfcl_jax.scanmatch import Odometer, ScanMatchParams, scan_match, thin_scan
+from mfcl_jax.windows.odometry import Odometer, ScanMatchParams, scan_match, thin_scan
 from mfcl_jax.score import pose_at
 from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.trajectory import TrajectoryParams
@@ -154,7 +154,7 @@ def test_anchors_are_reported_in_the_input_odometry_frame():
     places the robot from the input odometry, and both scorers agree on it."""
     import pandas as pd
 
-    from mfcl_jax import status
+    from mfcl_jax.robot import status
     from mfcl_jax.score import score_batch, score_decisions
 
     rec = _drifting(seed=5)

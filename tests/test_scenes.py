@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from shapely.geometry import LineString, Point
 
-from mfcl_jax.floorplan.scenes import BAY_PITCH, SCENES, get_scene, symmetric_bays, three_rooms
+from mfcl_jax.sim.scenes import BAY_PITCH, SCENES, get_scene, symmetric_bays, three_rooms
 from mfcl_jax.sim.trajectory import sample_path
 
 

@@ -10,9 +10,9 @@ import pytest
 
 from mfcl_jax import se2
 from mfcl_jax import windows as W
-from mfcl_jax.batch import RunBatch, SubmapBatch
-from mfcl_jax.floorplan.scenes import symmetric_bays
-from mfcl_jax.scanmatch import ScanMatchParams
+from mfcl_jax.windows.arrays import RunBatch, SubmapBatch
+from mfcl_jax.sim.scenes import symmetric_bays
+from mfcl_jax.windows.odometry import ScanMatchParams
 from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams, cast, sample_path
 from mfcl_jax.sim import raycast as rc
 from mfcl_jax.sources.simulated import simulate

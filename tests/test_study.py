@@ -10,7 +10,7 @@ from hydra import compose, initialize
 
 from experiments.sweep import batch_comma_lists
 from mfcl_jax.config import register_configs, to_study
-from mfcl_jax.floorplan.scenes import BAY_PITCH, get_scene
+from mfcl_jax.sim.scenes import BAY_PITCH, get_scene
 
 SCHEMA = {
     "policy_table": ["trajectory", "d_s", "single_shot", "support", "confidence", "ours"],

@@ -9,7 +9,7 @@ import pytest
 
 from mfcl_jax import windows as W
 from mfcl_jax.io import read_decisions, write_decisions
-from mfcl_jax.scanmatch import ScanMatchParams
+from mfcl_jax.windows.odometry import ScanMatchParams
 from mfcl_jax.score import score_batch, score_decisions
 from mfcl_jax.sources import Recording, ScanSequence
 from mfcl_jax.sources.recording import GroundTruth

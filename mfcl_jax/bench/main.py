@@ -17,7 +17,7 @@ import pandas as pd
 from mfcl_jax.bench import figures, report, suite
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, validate
 from mfcl_jax.bench.run import collect, decide_and_score
-from mfcl_jax.evaluate.tables import write_table
+from mfcl_jax.report.tables import write_table
 from mfcl_jax.io.atomic import atomic_write
 
 __all__ = ["run_benchmark", "write_tables", "write_margins", "read_runs", "merge"]
@@ -157,7 +157,7 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
 
 def _pictures(cfg: BenchmarkConfig, out: Path) -> None:
     """One picture per family (seed 0) with its walks drawn."""
-    from mfcl_jax.evaluate.plots_scene import plot_family
+    from mfcl_jax.report.plots_scene import plot_family
     from mfcl_jax.floorplan import families
 
     for fam in cfg.families:

@@ -25,7 +25,7 @@ from mfcl_jax.bench import suite
 from mfcl_jax.bench.config import BenchmarkConfig, validate
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.frontend.registry import FrontendParams
-from mfcl_jax.scanmatch import ScanMatchParams
+from mfcl_jax.windows.odometry import ScanMatchParams
 from mfcl_jax.score import CORRECT_XY, CORRECT_YAW_DEG, pose_at
 
 __all__ = ["VARIANTS", "window_hits", "recall_table", "main"]

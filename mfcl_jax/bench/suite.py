@@ -79,7 +79,7 @@ def ifc_floorplan(model: str, cache: str | None):
 
 
 def _ifc(model: str, seed: int, n: int, cfg: BenchmarkConfig):
-    from mfcl_jax.floorplan.scenes import Scene
+    from mfcl_jax.sim.scenes import Scene
     from mfcl_jax.sources.simulated import simulate
     from mfcl_jax.sources.walks import random_tours
 
@@ -194,7 +194,7 @@ def fault_recordings(cfg: BenchmarkConfig) -> list:
     level of every configured fault axis. Runs at an axis's nominal level that the nominal
     runs already hold are not simulated again; a deviation a building cannot take (a door
     that cannot move, no wall that can go) is skipped and said so."""
-    from mfcl_jax.floorplan.families import NotApplicable
+    from mfcl_jax.sim.families import NotApplicable
 
     fams = [f for f in cfg.families if f in PROCEDURAL]
     out = []

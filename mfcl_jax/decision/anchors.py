@@ -1,4 +1,4 @@
-"""Candidate anchoring ``H_ij = Y_ij X_i^-1`` and the per-run rearrangement of candidates.
+"""Candidate anchoring ``H_ij = Y_ij X_i^-1``.
 
 Every candidate of submap ``i`` proposes ``Y_ij = ^B T_{S_i}``; the odometry gives
 ``X_i = ^L T_{S_i}``. Chaining through ``S_i`` gives one estimate ``^B T_L`` per candidate, so
@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from mfcl_jax import se2
 
-__all__ = ["candidate_anchors", "sanitize", "per_run"]
+__all__ = ["candidate_anchors", "sanitize"]
 
 
 def sanitize(pose, score, mask):
@@ -50,25 +50,3 @@ def candidate_anchors(Y, X):
         ``(N, J, 3)`` anchors ``^B T_L``.
     """
     return se2.anchor(jnp.asarray(Y), jnp.asarray(X)[..., None, :])
-
-
-def per_run(H, score, mask, submap, window_mask):
-    """Gathers per-submap candidate arrays into per-run window order.
-
-    Args:
-        H: ``(N, J, 3)`` anchors (from ``candidate_anchors``).
-        score: ``(N, J)`` scores.
-        mask: ``(N, J)`` candidate validity.
-        submap: ``(R, K)`` int32 row into the submap axis (``RunBatch.submap``; -1 padded).
-        window_mask: ``(R, K)`` bool valid windows.
-
-    Returns:
-        ``(H (R, K, J, 3), score (R, K, J), mask (R, K, J), n_bad (R, K))``; padded windows and
-        non-finite candidates are masked, ``n_bad`` counts the non-finite ones per window.
-    """
-    submap = jnp.asarray(submap)
-    ok = jnp.asarray(window_mask, bool) & (submap >= 0)
-    idx = jnp.clip(submap, 0, jnp.asarray(H).shape[0] - 1)
-    h, s, m = jnp.asarray(H)[idx], jnp.asarray(score)[idx], jnp.asarray(mask, bool)[idx]
-    m = m & ok[..., None]
-    return sanitize(h, s, m)

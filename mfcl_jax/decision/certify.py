@@ -163,8 +163,9 @@ def _moves(steps) -> tuple:
             for st_xy, st_th in steps
             for axis, st in ((0, st_xy), (1, st_xy), (2, st_th))
             for sign in (1.0, -1.0)]  # fmt: skip
-    axis, step, first = zip(*rows, strict=True)
-    return jnp.asarray(axis, jnp.int32), jnp.asarray(step, jnp.float32), jnp.asarray(first)
+    axis, step, first = zip(*rows, strict=True) if rows else ((), (), ())
+    return (jnp.asarray(axis, jnp.int32), jnp.asarray(step, jnp.float32),
+            jnp.asarray(first, bool))  # fmt: skip
 
 
 def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=REFINE,
@@ -204,7 +205,8 @@ def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=
             return (jnp.where(better[:, None], cand, y), jnp.where(better, sc, best), centre), None
 
         y = pose_c  # (C, 3)
-        (y, best, _), _ = jax.lax.scan(body, (y, jax.vmap(one)(y), y), (axis, step, first))
+        (y, best, _), _ = jax.lax.scan(body, (y, jax.vmap(one)(y), y), (axis, step, first),
+                                       length=len(steps) * 6)  # fmt: skip
         return best, jax.vmap(blocks)(y)
 
     return jax.vmap(one_window)(poses, pts, org, pmask)

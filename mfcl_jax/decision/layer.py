@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import baselines, gate, machine, rivals, rule
+from mfcl_jax.decision import baselines, certify, gate, machine, rivals, rule
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import Caps, History, Path, empty_history, empty_path
 from mfcl_jax.decision.history import push_path, push_window
@@ -212,13 +212,18 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True):
     )(need_mode, cores)
     newest = (h.H[k], h.score[k], h.mask[k], h.X[k])
 
-    def lane(m, ug, up, uc, bm, dm, mg, hl):
+    def lane(m, ug, up, uc, bm, dm, mg, hl, nd):
         sym = mode_of(world.maps.sym, sym_of_mode[m])
-        raw = rule.finish(mode_of(cores, m), mode_of(certs, m), sym, p, ug, up, uc, bm, dm, mg)
+        # a lane reads the certificate only where it needs one itself, so what it reports
+        # does not depend on which other lanes share the evaluation
+        ct = mode_of(certs, m)
+        ct = certify.CertStats(ct.anchor, ct.valid, ct.max_adv, ct.min_adv, ct.n_windows,
+                               ct.ran & nd)  # fmt: skip
+        raw = rule.finish(mode_of(cores, m), ct, sym, p, ug, up, uc, bm, dm, mg)
         return machine.step(hl, raw, newest, p, ug)
 
     return jax.vmap(lane)(ln.mode, ln.use_gate, ln.use_probe, ln.use_cert, ln.b_min,
-                          ln.delta_min, ln.cert_margin, held)  # fmt: skip
+                          ln.delta_min, ln.cert_margin, held, need & allow)  # fmt: skip
 
 
 def _search(ops):

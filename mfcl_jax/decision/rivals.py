@@ -61,11 +61,8 @@ def _even(mask, n: int):
     order = jnp.argsort(~mask, stable=True)  # true entries first, in order
     count = jnp.sum(mask)
     i = jnp.arange(n)
-    pos = jnp.where(
-        count > n,
-        jnp.round(i * (count - 1).astype(jnp.float32) / max(n - 1, 1)).astype(jnp.int32),
-        i,
-    )
+    spread = i.astype(jnp.float32) * (count - 1).astype(jnp.float32) / max(n - 1, 1)
+    pos = jnp.where(count > n, jnp.round(spread).astype(jnp.int32), i)
     return order[jnp.clip(pos, 0, m - 1)], i < count
 
 

@@ -21,7 +21,7 @@ from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import decision_maps, stack_maps
 from mfcl_jax.decision.params import DecisionParams
 
-__all__ = ["RunInputs", "run_inputs", "decide_runs", "chunks"]
+__all__ = ["RunInputs", "run_inputs", "scan_runs", "decide_runs", "decide", "chunks"]
 
 
 @dataclass(frozen=True)
@@ -34,8 +34,11 @@ class RunInputs:
     seg_keyframes: np.ndarray  # (R,) most keyframes in one odometry segment
 
 
-def run_inputs(batch, cands) -> RunInputs:
-    """``RunInputs`` of every run of a ``windows.WindowBatch`` and its ``Candidates``."""
+def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs:
+    """``RunInputs`` of every run of a ``windows.WindowBatch`` and its ``Candidates``.
+
+    ``min_step``, ``min_head``: the least keyframes per window and per segment's first window
+    (several batches with the same floors share one compilation)."""
     rb, sub, ev = batch.runs, batch.submaps, batch.evidence
     traj, seg, tmask = (np.asarray(a) for a in (rb.traj, rb.traj_seg, rb.traj_mask))
     ws, we, wm, sm = (np.asarray(a) for a in (rb.window_start, rb.window_end, rb.window_mask,
@@ -63,9 +66,9 @@ def run_inputs(batch, cands) -> RunInputs:
             lasts[r, np.flatnonzero(wm[r])[-1]] = True
     # Keyframes per window: a few since the previous window, the whole window on a segment's
     # first (whose history is empty: those go to ``head``, which extends no walk).
-    S = max([b - a for r, k, a, b in chunks if not restarts[r, k]], default=1)
+    S = max([b - a for r, k, a, b in chunks if not restarts[r, k]] + [min_step, 1])
     S = -(-S // 16) * 16
-    S0 = max([b - a - S for r, k, a, b in chunks if restarts[r, k]], default=0)
+    S0 = max([b - a - S for r, k, a, b in chunks if restarts[r, k]] + [min_head, 0])
     S0 = -(-max(S0, 0) // 16) * 16
     tr = np.zeros((R, K, S, 3), np.float32)
     tm = np.zeros((R, K, S), bool)
@@ -111,8 +114,18 @@ def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None)
     return out
 
 
-def _scan_runs(maps, fields, building, params, lanes, evidence, caps, spec, n_img, rp):
-    """``vmap`` over runs of ``lax.scan(update)``: Decision leaves ``(R, K, L, ...)``."""
+TRACES = {"scan_runs": 0}  # incremented at trace time; tests count recompilations with it
+
+
+def scan_runs(maps, fields, building, params, lanes, evidence, caps, spec, n_img=0,
+              rp=rivals.DEFAULT_RIVALS):
+    """``vmap`` over runs of ``lax.scan(update)``: Decision leaves ``(R, K, L, ...)``.
+
+    ``maps`` (and ``fields``) are stacked per building ``(B, ...)``, run ``r`` reading
+    ``building[r]``; ``evidence`` leaves are ``(R, K, ...)``. Jit it once per capacity bucket
+    (``decide_runs`` does); ``TRACES`` counts its traces.
+    """
+    TRACES["scan_runs"] += 1
 
     def one(b, ev):
         m = jax.tree.map(lambda a: a[b], maps)
@@ -139,7 +152,8 @@ def _bucket(n: int, minimum: int, step: int | None = None) -> int:
 def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
                 lanes: Lanes, spec: LaneSpec, runs_per_call: int = 16,
                 buildings_per_call: int = 8, progress=None,
-                rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS):  # fmt: skip
+                rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS,
+                min_windows: int = 16, min_traj: int = 128):  # fmt: skip
     """Every lane's decision at every window of every run.
 
     Args:
@@ -148,6 +162,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         params, lanes, spec: ``lanes.lanes(...)``.
         runs_per_call, buildings_per_call: chunk sizes.
         progress: optional callable ``progress(runs_done)``.
+        min_windows, min_traj: the least window and keyframe capacities (``Caps``): batches
+            with the same floors share one compilation.
 
     Returns:
         ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
@@ -163,8 +179,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         else None  # fmt: skip
     n_img = rivals.image_size([floorplans[b] for b in used], rival_params) if search else 0
     # One capacity bucket for the whole batch: a compilation costs more than the padding.
-    k_b = np.full(R, _bucket(int(inputs.seg_windows.max(initial=1)), 16, 16))
-    t_b = np.full(R, _bucket(int(inputs.seg_keyframes.max(initial=1)), 128, 64))
+    k_b = np.full(R, _bucket(int(inputs.seg_windows.max(initial=1)), min_windows, 16))
+    t_b = np.full(R, _bucket(int(inputs.seg_keyframes.max(initial=1)), min_traj, 64))
     J = int(np.asarray(inputs.evidence.mask).shape[2])
     P = int(np.asarray(inputs.evidence.ev_mask).shape[2])
     S = int(np.asarray(inputs.evidence.traj_mask).shape[2])
@@ -194,7 +210,7 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         args = (mp, fields, bidx, p, lanes, ev)
         if key not in _COMPILED:
             t0 = time.perf_counter()
-            fn = jax.jit(_scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
+            fn = jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
             _COMPILED[key] = fn.lower(*args, caps=caps, spec=spec, n_img=n_img,
                                       rp=rival_params).compile()  # fmt: skip
             tm["compile_s"] += time.perf_counter() - t0
@@ -232,7 +248,7 @@ def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
 
 def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
            primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
-           buildings_per_call: int = 8, progress=None):  # fmt: skip
+           buildings_per_call: int = 8, progress=None, **floors):  # fmt: skip
     """Every lane's decision at every window of a ``WindowBatch``, as a table.
 
     Args:
@@ -242,6 +258,8 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
         params: one ``DecisionParams`` or a list of threshold sets (``lanes.lanes``).
         ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
         primary, primary_set: the lane whose commits trigger the rival search.
+        floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
+            (``decide_runs``).
 
     Returns:
         ``(frame, timing)``: ``frame.to_frame``'s rows for the batch's valid windows and
@@ -251,6 +269,7 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
     from mfcl_jax.decision.lanes import make_lanes
 
     p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
-    dec, tm = decide_runs(run_inputs(batch, cands), batch.run_building, floorplans, p, ln, spec,
-                          runs_per_call, buildings_per_call, progress)  # fmt: skip
+    steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
+    dec, tm = decide_runs(run_inputs(batch, cands, **steps), batch.run_building, floorplans, p,
+                          ln, spec, runs_per_call, buildings_per_call, progress, **floors)  # fmt: skip
     return to_frame(dec, spec, batch.runs.window_mask), tm

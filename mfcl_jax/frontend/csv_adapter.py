@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.batch import Candidates
+from mfcl_jax.frontend.candidates import Candidates
 
 __all__ = ["load_candidates_csv"]
 

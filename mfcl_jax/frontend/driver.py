@@ -18,7 +18,8 @@ import time
 import jax
 import numpy as np
 
-from mfcl_jax.batch import Candidates, SubmapBatch, pad_submaps
+from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps
+from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.frontend import registry
 
 __all__ = ["FrontEnd"]

@@ -220,8 +220,8 @@ def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
     fh, fw = fft_size(hc + n_img), fft_size(wc + n_img)
     npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
     nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
-    F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw)) / npts
-    F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw)) * (p.lam / nfree)
+    F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw)) * (1.0 / npts).astype(jnp.complex64)
+    F_bad = jnp.fft.rfft2(fields.c_bad, (fh, fw)) * (p.lam / nfree).astype(jnp.complex64)
     c_origin = fields.origin  # coarse grid shares the fine origin
     yaws = jnp.deg2rad(jnp.arange(0.0, 360.0, p.yaw_step_deg))
 

@@ -30,7 +30,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax.batch import Candidates, SubmapBatch
+from mfcl_jax.windows.arrays import SubmapBatch
+from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.floorplan.raster import Rasters, pad_to
 from mfcl_jax.frontend import features, pipeline, verify
 from mfcl_jax.frontend.dense import DenseFields, dense_fields

@@ -6,9 +6,15 @@ their header stamps; ``xyz=True`` keeps z (LaserScan points get z = 0). Scans th
 earlier scan's stamp are left out (the first message wins) and counted in
 ``BagScans.duplicates``, as duplicate odometry stamps are (``odom_duplicates``).
 
-Odometry is ``nav_msgs/Odometry``; its planar pose is interpolated at each scan stamp
-(linear in x, y and in the unwrapped yaw). Scans outside the odometry's time span cannot be
-paired: they are left out and counted in ``BagScans.unpaired``.
+Odometry comes at its own rate, from ``nav_msgs/Odometry`` messages (``/odom``) or from the
+``tf2_msgs/TFMessage`` transforms of a ``/tf`` topic (those from ``odom_frames[0]`` to
+``odom_frames[1]``, e.g. ``odom -> base_link``; given as ``odom_topic="/tf"``). Its quaternions
+are checked as a TUM file's are (``io.tum.unit_quaternions``: normalised with a
+``DataWarning``, refused when degenerate). Its planar pose is looked up at each scan stamp by
+``io.timesync.odometry_at`` (SE(2) interpolation, 1 ms tolerance at the ends of its span),
+the same code that pairs a dataset's scans; scans outside the odometry's time span are left
+out with a ``DataWarning`` and counted in ``BagScans.unpaired``. Scans whose ranges look like
+millimetres are refused (``io.units.check_metres``).
 
 The odometry pose is the pose of the odometry's child frame (the robot's base). The sensor
 pose is that pose composed with the LiDAR mounting: given as ``sensor_offset`` ``(x, y,
@@ -28,11 +34,14 @@ import numpy as np
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pointcloud2 import pointcloud2_points
 from mfcl_jax.io.tf_static import planar_pose, sensor_poses, static_edges, transform_between
-from mfcl_jax.io.tum import yaw_from_quat
+from mfcl_jax.io.timesync import odometry_at
+from mfcl_jax.io.tum import unit_quaternions, yaw_from_quat
+from mfcl_jax.io.units import check_metres
 
 __all__ = ["BagScans", "read_bag", "open_bag"]
 
 _SCAN_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2")
+_ODOM_TYPES = ("nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage")
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,7 +52,8 @@ class BagScans:
         times: ``(N,)`` scan stamps (s), strictly increasing.
         scans: ``N`` arrays ``(n_i, 2)`` (or ``(n_i, 3)`` with ``xyz``), sensor frame.
         odometry: ``(N, 3)`` sensor poses in the odometry frame at the scan stamps.
-        unpaired: scans left out because no odometry brackets their stamp.
+        unpaired: scans left out because they lie outside the odometry's time span (more
+            than ``timesync.TIME_TOL_S`` beyond its ends; a ``DataWarning`` says so).
         odom_times: ``(M,)`` stamps of the raw odometry messages (duplicates removed).
         odom_poses: ``(M, 3)`` the raw odometry poses.
         duplicates: scans left out because an earlier scan has the same stamp.
@@ -71,6 +81,39 @@ class BagScans:
 
 def _stamp(msg) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+class _Odometry:
+    """Collects odometry rows ``(t, x, y, qx, qy, qz, qw)`` from Odometry or TF messages."""
+
+    def __init__(self, frames: tuple[str, str]):
+        self.frames = tuple(str(f).lstrip("/") for f in frames)
+        self.rows: list[tuple] = []
+        self.pairs: set[tuple[str, str]] = set()
+
+    def add(self, m) -> None:
+        if not hasattr(m, "transforms"):
+            p, q = m.pose.pose.position, m.pose.pose.orientation
+            self.rows.append((_stamp(m), p.x, p.y, q.x, q.y, q.z, q.w))
+            return
+        for ts in m.transforms:
+            pair = (ts.header.frame_id.lstrip("/"), ts.child_frame_id.lstrip("/"))
+            self.pairs.add(pair)
+            if pair == self.frames:
+                tr, q = ts.transform.translation, ts.transform.rotation
+                self.rows.append((_stamp(ts), tr.x, tr.y, q.x, q.y, q.z, q.w))
+
+    def poses(self, where: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(times (M,), poses (M, 3))`` in message order, quaternions checked."""
+        if not self.rows and self.pairs:
+            pairs = ", ".join(f"{a} -> {b}" for a, b in sorted(self.pairs))
+            raise DataError(
+                f"{where}: no transform {self.frames[0]} -> {self.frames[1]}; transforms "
+                f"present: {pairs}"
+            )
+        r = np.asarray(self.rows, np.float64).reshape(-1, 7)
+        q = unit_quaternions(r[:, 3:], [f"{where} t={t:.9f}" for t in r[:, 0]])
+        return r[:, 0], np.stack([r[:, 1], r[:, 2], yaw_from_quat(q)], -1)
 
 
 def _laserscan_points(m, xyz: bool) -> np.ndarray:
@@ -110,24 +153,32 @@ def read_bag(
     xyz: bool = False,
     base_frame: str | None = None,
     tf_topic: str = "/tf_static",
+    odom_frames: tuple[str, str] | None = None,
 ) -> BagScans:
     """Reads scans and odometry from a ROS1 ``.bag`` or a ROS2 bag folder.
 
     Args:
         path: the bag.
         scan_topic: LaserScan or PointCloud2 topic.
-        odom_topic: nav_msgs/Odometry topic.
+        odom_topic: nav_msgs/Odometry topic, or a tf2_msgs/TFMessage topic (``/tf``).
         sensor_offset: pose ``(x, y, yaw)`` of the sensor in the odometry child frame.
         xyz: keep z: scans ``(n_i, 3)``.
         base_frame: read the mounting from ``tf_topic`` instead: the static chain from this
             frame (the odometry's child frame, e.g. ``base_link``) to the scans' frame.
         tf_topic: the static-transform topic.
+        odom_frames: ``(parent, child)`` of the odometry transforms when ``odom_topic``
+            carries TFMessages (default ``("odom", base_frame or "base_link")``).
 
     Raises:
         DataError: unreadable bag, a missing topic or a topic of the wrong type (the topics
             present are listed), both ``sensor_offset`` and ``base_frame``, a ``/tf_static``
-            without the frames needed (the frames present are listed), no scan that the
-            odometry brackets.
+            without the frames needed (the frames present are listed), a ``/tf`` without
+            the odometry transform (the transforms present are listed), a degenerate
+            odometry quaternion, scans in millimetres, no scan within the odometry's span.
+
+    Warns:
+        DataWarning: non-unit odometry quaternions (normalised), scans outside the
+            odometry's time span (left out).
     """
     path = Path(path)
     if base_frame is not None and np.any(np.asarray(sensor_offset, float) != 0):
@@ -139,7 +190,7 @@ def read_bag(
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         listing = ", ".join(f"{t} ({ty})" for t, ty in sorted(topics.items())) or "none"
-        need = [(scan_topic, _SCAN_TYPES), (odom_topic, ("nav_msgs/msg/Odometry",))]
+        need = [(scan_topic, _SCAN_TYPES), (odom_topic, _ODOM_TYPES)]
         if base_frame is not None:
             need.append((tf_topic, ("tf2_msgs/msg/TFMessage",)))
         for topic, ok_types in need:
@@ -150,18 +201,17 @@ def read_bag(
                 raise DataError(f"{path}: topic {topic!r} carries {topics[topic]}, expected {want}")
         wanted = {t for t, _ in need}
         conns = [c for c in reader.connections if c.topic in wanted]
-        s_t, scans, o_t, o_p, tf_msgs = [], [], [], [], []
+        s_t, scans, tf_msgs = [], [], []
+        odo = _Odometry(odom_frames or ("odom", base_frame or "base_link"))
         frame, dropped = "", 0
         where = f"{path} {scan_topic}"
         for con, _, raw in reader.messages(connections=conns):
             m = reader.deserialize(raw, con.msgtype)
             if con.topic == odom_topic:
-                p, q = m.pose.pose.position, m.pose.pose.orientation
-                o_t.append(_stamp(m))
-                o_p.append((p.x, p.y, float(yaw_from_quat([q.x, q.y, q.z, q.w]))))
-            elif con.topic == tf_topic:
+                odo.add(m)
+            if con.topic == tf_topic:
                 tf_msgs.append(m)
-            else:
+            if con.topic == scan_topic:
                 s_t.append(_stamp(m))
                 frame = frame or m.header.frame_id
                 if con.msgtype.endswith("LaserScan"):
@@ -172,17 +222,19 @@ def read_bag(
                     dropped += nd
     finally:
         reader.close()
+    o_t, o_p = odo.poses(f"{path} {odom_topic}")
+    check_metres(scans, [f"{where} scan at t={t:.9f}" for t in s_t], str(path))
     mount = None
     if base_frame is not None:
         edges = static_edges(tf_msgs, f"{path} {tf_topic}")
         mount = transform_between(edges, base_frame, frame, f"{path} {tf_topic}")
         sensor_offset = planar_pose(mount)
     return _pair(
-        path,
+        f"{path} {odom_topic}",
         np.asarray(s_t),
         scans,
-        np.asarray(o_t),
-        np.asarray(o_p).reshape(-1, 3),
+        o_t,
+        o_p,
         sensor_offset,
         dict(dropped=dropped, frame_id=str(frame).lstrip("/"), mount=mount),
     )
@@ -195,24 +247,18 @@ def _first_of_each(t: np.ndarray) -> tuple[np.ndarray, int]:
     return order[keep], len(t) - len(keep)
 
 
-def _pair(path, s_t, scans, o_t, o_p, offset, extra) -> BagScans:
+def _pair(where, s_t, scans, o_t, o_p, offset, extra) -> BagScans:
+    """Scans with the odometry at their stamps (``timesync.odometry_at``), in stamp order;
+    messages repeating a stamp are left out (the first wins: bags record in arrival order)."""
     o_idx, o_dup = _first_of_each(o_t)
     o_t, o_p = o_t[o_idx], o_p[o_idx]
-    if len(o_t) < 2:
-        raise DataError(f"{path}: need at least 2 odometry messages, got {len(o_t)}")
+    if len(o_t) == 0:
+        raise DataError(f"{where}: no odometry messages")
     s_idx, s_dup = _first_of_each(s_t)
     s_t = s_t[s_idx]
     scans = [scans[i] for i in s_idx]
-    inside = (s_t >= o_t[0]) & (s_t <= o_t[-1])
-    if not inside.any():
-        raise DataError(
-            f"{path}: no scan stamp lies within the odometry's span [{o_t[0]:.3f}, {o_t[-1]:.3f}] s"
-        )
+    inside, pose = odometry_at(o_t, o_p, s_t, where)
     t = s_t[inside]
-    yaw = np.unwrap(o_p[:, 2])
-    pose = np.stack(
-        [np.interp(t, o_t, o_p[:, 0]), np.interp(t, o_t, o_p[:, 1]), np.interp(t, o_t, yaw)], -1
-    )
     pose = sensor_poses(pose, offset)
     return BagScans(
         t,

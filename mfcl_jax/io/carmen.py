@@ -13,6 +13,16 @@ Dropped readings: <= 0, at or beyond ``max_range``, and the SICK status codes th
 32.759..32.767 m in millimetre mode, as the Orebro log writes them; a real echo never lands
 there).
 
+Units: readings are metres; a log whose first FLASER lines (``io.units.N_FIRST``) have a
+median positive reading above ``io.units.MM_MEDIAN_RANGE`` (200) is refused as millimetres,
+before ``max_range`` would silently drop every reading.
+
+Odometry: each FLASER line carries the odometry at its own stamp (the CARMEN logger
+interpolates it there), so the log's ``ODOM`` lines (their own rate; in the four real logs
+they go back in time 123 to 1498 times) are not read. ``sources.sequence.from_carmen`` looks
+the FLASER odometry up at the scan stamps with ``io.timesync.odometry_at``, the code every
+other input's odometry goes through.
+
 Timestamps: some logs have no clock (the Orebro log writes 0 on every line). Such a log is an
 error unless ``untimed_period`` is given, which numbers its lines ``0, period, 2 period, ...``
 (``CarmenLog.timed`` is then False). Plain or gzip-compressed files.
@@ -28,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.io.units import N_FIRST, check_metres
 
 __all__ = ["CarmenLog", "read_carmen", "beam_angles", "NO_RETURN_CODES"]
 
@@ -94,13 +105,14 @@ def read_carmen(
     Raises:
         DataError: missing file, a FLASER line with too few fields or non-numbers, times that
             go backwards (``strict_time``), a log without a clock and no ``untimed_period``,
-            or a log without FLASER lines (each names the file and line).
+            a log without FLASER lines, readings in millimetres (each names the file and
+            line).
     """
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: file not found")
     opener = gzip.open if path.suffix == ".gz" else open
-    times, scans, poses, odom = [], [], [], []
+    times, scans, poses, odom, first = [], [], [], [], []
     reversals = 0
     angles: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     try:
@@ -131,6 +143,8 @@ def read_carmen(
                     angles[n] = (np.cos(a), np.sin(a))
                 c, s = angles[n]
                 r = vals[:n]
+                if len(first) < N_FIRST:
+                    first.append((no, r[np.isfinite(r) & (r > 0)]))
                 ok = np.isfinite(r) & (r > 0) & (r < max_range) & ~_no_return(r)
                 scans.append(np.stack([r[ok] * c[ok], r[ok] * s[ok]], -1))
                 poses.append(vals[n : n + 3])
@@ -140,6 +154,7 @@ def read_carmen(
         raise DataError(f"{path}: cannot read ({e})") from None
     if not times:
         raise DataError(f"{path}: no FLASER lines")
+    check_metres([r[:, None] for _, r in first], [f"{path}:{no}" for no, _ in first], str(path))
     t = np.asarray(times)
     timed = len(t) == 1 or bool(np.ptp(t) > 0)
     if not timed:

@@ -1,4 +1,4 @@
-"""The one error type of the input/output layer."""
+"""The error and warning types of the input/output layer."""
 
 from __future__ import annotations
 
@@ -6,11 +6,16 @@ from pathlib import Path
 
 from mfcl_jax.io.atomic import atomic_write
 
-__all__ = ["DataError", "atomic_write_text"]
+__all__ = ["DataError", "DataWarning", "atomic_write_text"]
 
 
 class DataError(ValueError):
     """Unusable input data; the message names the file (and line or field) and the problem."""
+
+
+class DataWarning(UserWarning):
+    """Input that is usable but not exactly as written (a quaternion normalised, scans left
+    out); the message names the file, what was found and what was done with it."""
 
 
 def atomic_write_text(path, text: str) -> Path:

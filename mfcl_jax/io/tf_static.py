@@ -5,7 +5,9 @@ Each ``geometry_msgs/TransformStamped`` gives the pose of ``child_frame_id`` in
 chains them, forwards or inverted, from a parent frame (e.g. ``base_link``) to the scan's
 frame, so a tree such as ``base_link -> lidar_mount -> os_sensor -> os_lidar`` gives the
 sensor's pose in ``base_link`` as one 4x4 matrix. Frame names are compared without a
-leading ``/`` (ROS1 bags often write ``/base_link``).
+leading ``/`` (ROS1 bags often write ``/base_link``). Quaternions are checked as odometry's
+are (``io.tum.unit_quaternions``: a non-unit one is normalised with a ``DataWarning``, a
+degenerate one is a ``DataError``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.io.tum import unit_quaternions
 
 __all__ = [
     "matrix_from_quaternion",
@@ -64,6 +67,7 @@ def static_edges(messages, where: str = "/tf_static") -> dict[tuple[str, str], n
         for ts in m.transforms:
             tr, q = ts.transform.translation, ts.transform.rotation
             parent, child = _frame(ts.header.frame_id), _frame(ts.child_frame_id)
+            unit_quaternions([(q.x, q.y, q.z, q.w)], [f"{where}: {parent} -> {child}"])
             try:
                 edges[(parent, child)] = matrix_from_quaternion(
                     (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
-from mfcl_jax.batch import bucket
+from mfcl_jax.windows.arrays import bucket
 from mfcl_jax.io.errors import DataError
 
 __all__ = ["MCLBatch", "pad_batch", "prepare_mcl_inputs"]

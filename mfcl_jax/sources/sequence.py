@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.io.timesync import odometry_at
 
 __all__ = ["ScanSequence", "from_dataset", "from_bag", "from_carmen"]
 
@@ -73,9 +74,23 @@ def from_bag(bag, source: str = "<bag>") -> ScanSequence:
 def from_carmen(log, odometry=None, source: str = "<carmen>") -> ScanSequence:
     """A CARMEN log's scans with ``odometry`` (default the log's own odometry columns).
 
-    Lines whose time goes backwards are dropped (real logs have a few)."""
-    t = np.asarray(log.times)
+    Lines whose time goes backwards are dropped (real logs have a few). The odometry, one
+    pose per FLASER line at its stamp, is looked up at the scan stamps by
+    ``io.timesync.odometry_at`` like every input's odometry (same checks, yaw wrapped).
+
+    Args:
+        log: ``io.CarmenLog``.
+        odometry: ``(N, 3)`` poses, one per FLASER line, or None for ``log.odometry``.
+        source: name for messages.
+
+    Raises:
+        DataError: ``odometry`` with another number of rows than the log has lines.
+    """
+    t = np.asarray(log.times, np.float64)
     keep = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
-    odo = log.odometry if odometry is None else np.asarray(odometry)
+    odo = log.odometry if odometry is None else np.asarray(odometry, np.float64)
+    if len(odo) != len(t):
+        raise DataError(f"{source}: {len(odo)} odometry poses for {len(t)} FLASER lines")
     idx = np.flatnonzero(keep)
-    return ScanSequence(t[idx], [log.scans[i] for i in idx], odo[idx], source)
+    _, poses = odometry_at(t[idx], odo[idx], t[idx], source)
+    return ScanSequence(t[idx], [log.scans[i] for i in idx], poses, source)

@@ -94,7 +94,7 @@ def simulate(
         Recordings named ``"{scene}/{trajectory}/s{seed}"`` with ground truth; ``meta`` holds
         ``scene``, ``trajectory``, ``seed``, ``length_m``.
     """
-    from mfcl_jax.floorplan.scenes import Scene, get_scene
+    from mfcl_jax.sim.scenes import Scene, get_scene
 
     params = SimParams() if params is None else params
     scene = get_scene(scene) if isinstance(scene, str) else scene
@@ -184,7 +184,7 @@ def simulate(
 def simulate_walk(floorplan, waypoints, seed: int = 0, params: SimParams | None = None, tag="walk"):
     """A ``Recording`` of a LiDAR walk along ``waypoints`` through a loaded floor plan (the
     LiDAR sees the plan's wall faces only)."""
-    from mfcl_jax.floorplan.scenes import Scene
+    from mfcl_jax.sim.scenes import Scene
 
     scene = Scene(floorplan.name or "plan", floorplan, np.zeros((0, 2, 2)), {tag: waypoints})
     return simulate(scene, [tag], [seed], params)[0]

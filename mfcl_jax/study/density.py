@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax import windows as W
-from mfcl_jax.batch import Candidates
+from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.study.pipeline import StudyData
 
 __all__ = ["subset", "flood", "stack_copies", "density_table"]

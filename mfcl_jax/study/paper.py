@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.evaluate.tables import cell
+from mfcl_jax.report.tables import cell
 
 __all__ = ["PAPER_POLICY", "PAPER_SELECTIVE", "comparison"]
 

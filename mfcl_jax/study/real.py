@@ -26,8 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mfcl_jax import se2
-from mfcl_jax.localizer import LocalizeParams, Localizer
+from mfcl_jax.robot.localizer import LocalizeParams, Localizer
 from mfcl_jax.score import score_decisions, summarize
 from mfcl_jax.sources.sequence import ScanSequence
 from mfcl_jax.sources.walks import route
@@ -171,48 +170,11 @@ def _run(loc: Localizer, case: Case, fp, out: Path) -> dict:
 
 
 def _plot(fp, case: Case, scored, png: Path) -> None:
-    import matplotlib
+    from mfcl_jax.report.plots_run import plot_run
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from mfcl_jax.evaluate.plots_floorplan import draw_floorplan
-
-    png.parent.mkdir(parents=True, exist_ok=True)
-    x0, y0, x1, y1 = fp.bounds
-    w = 8.0
-    fig, ax = plt.subplots(figsize=(w, min(max(w * (y1 - y0) / max(x1 - x0, 1e-6), 3.5), 12)))
-    draw_floorplan(ax, fp, labels=False, graph=False)
-    ax.plot(case.gt[:, 0], case.gt[:, 1], "-", color="k", lw=1.2, label="true path")
-    com = scored[scored["state"] == "COMMIT"]
-    if len(com):
-        c = com.iloc[0]
-        A = np.array([c["x"], c["y"], np.deg2rad(c["yaw_deg"])])
-        placed = np.asarray(se2.compose(A, case.seq.odometry), np.float64)
-        ok = bool(c["correct"])
-        ax.plot(
-            placed[:, 0],
-            placed[:, 1],
-            "--",
-            color="tab:green" if ok else "tab:red",
-            lw=1.2,
-            label=f"odometry placed by first commit (k={int(c['k'])})",
-        )
-        ax.plot(c["placed_x"], c["placed_y"], "o", color="tab:green" if ok else "tab:red", ms=7)
-        ax.plot(c["true_x"], c["true_y"], "x", color="k", ms=8)
-    ax.plot(case.gt[0, 0], case.gt[0, 1], "^", color="k", ms=7, label="start")
-    last = scored.iloc[-1] if len(scored) else None
-    end = (
-        "no windows"
-        if last is None
-        else f"final {last['state']}"
-        + (f" ({last['symmetry']})" if isinstance(last["symmetry"], str) else "")
-    )
-    first = f"first commit k={int(com.iloc[0]['k'])}" if len(com) else "no commit"
-    ax.set_title(f"{case.group} / {case.name}: {len(scored)} windows, {first}, {end}", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    fig.savefig(png, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    # The study's decisions and truth are in the plan's local frame (records without offset).
+    name = f"{case.group} / {case.name}"
+    plot_run(png, fp, case.gt, case.seq.odometry, scored, name, offset=(0.0, 0.0))
 
 
 def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict]:
@@ -245,7 +207,7 @@ def _recording_case(group: str, rec, note: str) -> Case:
 def _intel_cases(
     params: LocalizeParams, out: Path, n_windows: int = 3, length: float = 80.0
 ) -> list[dict]:
-    from mfcl_jax.evaluate.plots_floorplan import show_floorplan
+    from mfcl_jax.report.plots_floorplan import show_floorplan
     from mfcl_jax.sources.logs import full_map, log_recordings
 
     # The full map (for the picture and the README); localization uses held-out maps.

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.evaluate import figures, tables
-from mfcl_jax.floorplan.scenes import BAY_PITCH, get_scene
+from mfcl_jax.report import figures, tables
+from mfcl_jax.sim.scenes import BAY_PITCH, get_scene
 from mfcl_jax.score import first_commits
 from mfcl_jax.study import paper
 

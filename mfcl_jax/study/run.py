@@ -12,7 +12,7 @@ import pandas as pd
 
 from mfcl_jax.config import StudyConfig
 from mfcl_jax.decision.lanes import STRICT_IOU
-from mfcl_jax.evaluate import tables
+from mfcl_jax.report import tables
 from mfcl_jax.study import density, pipeline, report
 
 __all__ = ["run_study", "merge"]

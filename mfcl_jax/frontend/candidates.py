@@ -1,0 +1,41 @@
+"""What the front-end hands the decision layer: top-J scored candidate poses per submap."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+
+__all__ = ["Candidates", "REASONS"]
+
+
+# Why a submap produced no candidates (Candidates.reason); the decision layer reports DEFER.
+REASONS = {
+    0: "ok",
+    1: "empty submap",
+    2: "too few points",
+    3: "no features",
+    4: "no walls in floor plan",
+}
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Front-end output: top-J scored candidates per submap.
+
+    Attributes:
+        pose: ``(N, J, 3)`` float32 ``Y_ij = ^B T_{S_i}``.
+        score: ``(N, J)`` float32 verification score (higher is better).
+        mask: ``(N, J)`` bool, valid candidates.
+        reason: ``(N,)`` int32 key of ``REASONS`` (0 when candidates exist).
+    """
+
+    pose: jax.Array
+    score: jax.Array
+    mask: jax.Array
+    reason: jax.Array
+
+
+jax.tree_util.register_dataclass(
+    Candidates, data_fields=["pose", "score", "mask", "reason"], meta_fields=[]
+)

@@ -1,0 +1,247 @@
+"""The robot's path: a scan sequence localized window by window against one floor plan.
+
+The same pieces as the study and the benchmark: windows are cut by ``windows`` (causally, as
+they complete: ``windows.Cutter``), and each window goes through ONE jitted step: the
+front-end registers the submap (``frontend.registry.register``), the layer anchors its
+candidates and decides (``decision.layer.update``). The layer's state stays on the device
+between windows; per window one transfer goes in (the submap, the new keyframes, the
+evidence sample) and one comes out (the decision). Ground truth never enters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax.robot import status
+from mfcl_jax import windows as W
+from mfcl_jax.windows.arrays import EVIDENCE_POINTS, SubmapBatch, bucket, evidence_sample
+from mfcl_jax.decision import layer, lattice, rivals
+from mfcl_jax.decision.history import Caps
+from mfcl_jax.decision.lanes import make_lanes
+from mfcl_jax.decision.maps import decision_maps
+from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
+from mfcl_jax.decision.params import DecisionParams
+from mfcl_jax.frontend import FrontendParams, registry
+from mfcl_jax.frontend.driver import FrontEnd
+
+__all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize", "record_of"]
+
+ROBOT_CAPS = Caps(windows=64, cands=32, traj=1024, step=64, evidence=EVIDENCE_POINTS)
+
+
+@dataclass(frozen=True)
+class LocalizeParams:
+    """Settings of the localization path (defaults: the study's and the paper's).
+
+    Attributes:
+        window: how scans are cut into submaps (``d_s``, step, voxel, crop, capacity).
+        frontend: front-end parameters (static; one compilation per value).
+        decision: decision thresholds (``None``: paper defaults).
+        caps: the layer's capacities (``decision.history``: what a long run keeps).
+    """
+
+    window: W.WindowParams = field(default_factory=W.WindowParams)
+    frontend: FrontendParams = field(default_factory=FrontendParams)
+    decision: DecisionParams | None = None
+    caps: Caps = ROBOT_CAPS
+
+    @property
+    def d_s(self) -> float:
+        return self.window.d_s
+
+    def with_d_s(self, d_s: float) -> LocalizeParams:
+        return replace(self, window=replace(self.window, d_s=float(d_s)))
+
+
+def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0)) -> dict:
+    """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
+    anchor (when COMMIT), the robot's pose and the reason (``status.record``)."""
+    state = STATE_NAMES[int(dec.state)]
+    kind = lattice.KIND_NAMES[int(dec.kind)]
+    a = np.asarray(dec.anchor, np.float64)
+    anchor = None
+    if state == "COMMIT":
+        anchor = {"x": float(a[0]), "y": float(a[1]), "yaw_deg": float(np.rad2deg(a[2]))}
+    d = {
+        "k": int(k),
+        "t": float(t),
+        "state": state,
+        "anchor": anchor,
+        "symmetry": kind,
+        "tau": [float(v) for v in np.asarray(dec.tau)] if kind == "translation" else None,
+        "B1": int(dec.b1),
+        "B2": int(dec.b2),
+        "margin": int(dec.margin),
+    }
+    rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
+    return status.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """One window: where it lies in the input, what the front-end saw, the decision.
+
+    Attributes:
+        k: 1-based window count (over the whole recording).
+        decision: the ``Decision`` of the window (host scalars).
+        first, last: indices of the window's first and last scan in the input sequence.
+        t: time of the last scan (the decision's time).
+        X: ``(3,)`` pose of the last scan in the layer's odometry (LiDAR-refined where
+            enabled), ``^L T_{S_k}``.
+        n_points: points in the submap after thinning.
+        voxel: voxel edge used (m); larger than the configured one when re-thinned.
+        n_candidates: valid candidates from the front-end.
+        frontend_reason: ``batch.REASONS`` key (0 when candidates exist).
+        rethinned: the window was thinned with a coarser voxel to fit the capacity.
+        X_input: ``(3,)`` the input odometry's pose at the same time.
+        segment: the odometry segment of the window (0, plus one after every jump).
+        points: ``(n, 2)`` the window's submap points in its frame ``S_k`` (``X`` places them
+            in the odometry frame, ``T* X`` in the plan).
+    """
+
+    k: int
+    decision: object
+    first: int
+    last: int
+    t: float
+    X: np.ndarray
+    n_points: int
+    voxel: float
+    n_candidates: int
+    frontend_reason: int
+    rethinned: bool
+    X_input: np.ndarray
+    segment: int = 0
+    points: np.ndarray | None = None
+
+    def record(self, offset=(0.0, 0.0)) -> dict:
+        """The decisions-file line (``record_of``; ``offset``: plan = local + offset)."""
+        return record_of(self.decision, self.k, self.t, self.X, self.X_input, offset)
+
+    def status(self, offset=(0.0, 0.0)) -> str:
+        """One human-readable status line (``status.status_line``)."""
+        thin = f" rethinned voxel={self.voxel:.2f}" if self.rethinned else ""
+        detail = f"pts={self.n_points}{thin} cands={self.n_candidates}"
+        return status.status_line(self.record(offset), detail)
+
+
+def _step(world, memory, sub, feats, X, traj, traj_mask, start, ev, fe_params):
+    """register -> anchor -> decide, for one window (the robot's whole step)."""
+    c = registry.register(sub, feats, fe_params)
+    f32 = jnp.float32
+    evidence = layer.WindowEvidence(
+        Y=c.pose[0], score=c.score[0], mask=c.mask[0], X=X, traj=traj, traj_mask=traj_mask,
+        head=jnp.zeros((0, 3), f32), head_mask=jnp.zeros(0, bool), start=start,
+        ev_points=ev[0], ev_origins=ev[1], ev_mask=ev[2], valid=jnp.bool_(True),
+        last=jnp.bool_(False), restart=jnp.bool_(False),
+    )  # fmt: skip
+    state, dec = layer.update(layer.join(world, memory), evidence)
+    return layer.split(state)[1], jax.tree.map(lambda a: a[0], dec), c.reason[0], jnp.sum(c.mask[0])
+
+
+def _advance(world, memory, traj, traj_mask):
+    return layer.split(layer.advance(layer.join(world, memory), traj, traj_mask))[1]
+
+
+class Localizer:
+    """Floor-plan state (features, gate maps, the compiled step) built once, then any number
+    of sequences localized against it.
+
+    Args:
+        floorplan: the ``Floorplan`` (frame B).
+        params: ``LocalizeParams``.
+        variant: a key of ``decision.lanes.OURS_VARIANTS``.
+    """
+
+    def __init__(self, floorplan, params: LocalizeParams | None = None, variant: str = "ours"):
+        self.floorplan = floorplan
+        self.params = params or LocalizeParams()
+        fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
+        self._feats = jax.tree.map(jnp.asarray, fe.features(0))
+        p, lanes, spec = make_lanes(self.params.decision, (variant,), primary=variant)
+        maps = jax.tree.map(jnp.asarray, decision_maps(floorplan, min_iou=spec.min_iou))
+        fields, n_img = None, 0
+        if spec.primary >= 0:
+            fields = jax.tree.map(jnp.asarray, rivals.rival_fields(floorplan))
+            n_img = rivals.image_size([floorplan])
+        self._init = (maps, p.as_arrays(), self.params.caps, jax.tree.map(jnp.asarray, lanes),
+                      spec, fields, n_img)  # fmt: skip
+        self._step = jax.jit(_step, static_argnames=("fe_params",), donate_argnums=(1,),
+                             compiler_options=registry.COMPILER_OPTIONS)  # fmt: skip
+        self._advance = jax.jit(_advance, donate_argnums=(1,))
+        self._capacity = bucket(self.params.window.capacity, 256)
+
+    def estimate(self, seq) -> int:
+        """The number of windows of ``seq`` by its input odometry (a progress total)."""
+        return W.Cutter(self.params.window).estimate(seq)
+
+    def run(self, seq) -> Iterator[WindowResult]:
+        """Streams the windows of ``seq``; yields one ``WindowResult`` per window, each as
+        soon as its keyframes are refined and it is decided."""
+        return self.follow([seq])
+
+    def follow(self, prefixes) -> Iterator[WindowResult]:
+        """Streams the windows of a recording that grows (the live path).
+
+        Args:
+            prefixes: ever longer ``ScanSequence``s of one recording, each extending the one
+                before; every window complete in a prefix and not yet seen is decided.
+                Windows are causal, so the results are ``run``'s on the last prefix.
+        """
+        cutter = W.Cutter(self.params.window)
+        world, memory, prev_end, seg, base, k = None, None, -1, None, 0, 0
+        step = self.params.caps.step
+        for seq in prefixes:
+            for w in cutter.feed(seq):
+                k += 1
+                j0, j1 = (int(v) for v in w.bounds[0])
+                if w.segments[j0] != seg:
+                    # A new odometry segment (a restart): poses before and after are in
+                    # incommensurable frames, so the layer starts over.
+                    seg = w.segments[j0]
+                    world, memory = layer.split(layer.init(*self._init))
+                    base = int(np.flatnonzero(w.segments == seg)[0])
+                    prev_end = base - 1
+                traj = np.asarray(w.odometry[prev_end + 1 : j1 + 1], np.float32)
+                while len(traj) > step:  # keyframes beyond one update's capacity
+                    memory = self._advance(world, memory, traj[:step], np.ones(step, bool))
+                    traj = traj[step:]
+                tr = np.zeros((step, 3), np.float32)
+                tm = np.arange(step) < len(traj)
+                tr[: len(traj)] = traj
+                prev_end = j1
+                memory, dec, reason, n_cand = self._step(
+                    world, memory, self._submap(w), self._feats, np.asarray(w.X[0], np.float32), tr, tm,
+                    np.int32(j0 - base), evidence_sample(w.points[0], w.origins[0]),
+                    fe_params=self.params.frontend,
+                )  # fmt: skip
+                yield WindowResult(
+                    k=k, decision=jax.tree.map(np.asarray, dec), first=int(w.keyframes[j0]),
+                    last=int(w.keyframes[j1]), t=float(w.t[0]), X=np.asarray(w.X[0]),
+                    n_points=len(w.points[0]), voxel=float(w.voxel[0]), n_candidates=int(n_cand),
+                    frontend_reason=int(reason), rethinned=bool(W.rethinned(w)[0]),
+                    X_input=np.asarray(w.X_input[0]), segment=int(seg), points=w.points[0],
+                )  # fmt: skip
+
+    def _submap(self, w) -> SubmapBatch:
+        cap = self._capacity
+        pts, org = w.points[0], w.origins[0]
+        n = len(pts)
+        points = np.zeros((1, cap, 2), np.float32)
+        origins = np.zeros((1, cap, 2), np.float32)
+        mask = np.zeros((1, cap), bool)
+        points[0, :n], origins[0, :n], mask[0, :n] = pts, org, True
+        sub = SubmapBatch(points, origins, mask, np.asarray(w.X, np.float32)[:1],
+                          np.zeros(1, np.int32), np.zeros(1, np.int32), np.asarray(w.t)[:1],
+                          np.zeros(1, np.int32))  # fmt: skip
+        return registry.sanitize_submaps(sub)
+
+
+def localize(floorplan, seq, params: LocalizeParams | None = None) -> list:
+    """All ``WindowResult``s of one sequence (convenience wrapper of ``Localizer.run``)."""
+    return list(Localizer(floorplan, params).run(seq))

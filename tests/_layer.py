@@ -1,0 +1,79 @@
+"""The decision layer on synthetic runs (``tests.test_decision_scenes.make_run`` dicts):
+``vmap`` over runs of ``lax.scan(layer.update)``, compiled once per lane set for one padded
+map shape, as ``decision.runs`` does for real batches."""
+
+from functools import lru_cache
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.decision import OURS_VARIANTS, Caps, DecisionParams, decision_maps, make_lanes
+from mfcl_jax.decision.layer import WindowEvidence
+from mfcl_jax.decision.maps import pad_maps
+from mfcl_jax.decision.runs import scan_runs
+
+K, J, T, STEP, GRID = 8, 16, 192, 48, (340, 340)
+CAPS = Caps(windows=K, cands=J, traj=T, step=STEP, evidence=128)
+
+
+def maps_of(fp, n_rooms=4):
+    """``DecisionMaps`` of ``fp`` padded to the tests' grid, stacked as one building."""
+    m = pad_maps(decision_maps(fp), GRID, n_rooms, n_motions=8, n_offsets=32)
+    return jax.tree.map(lambda a: jnp.asarray(a)[None], m)
+
+
+def evidence_of(run) -> WindowEvidence:
+    """One run's windows as the layer sees them (``(K, ...)`` host arrays)."""
+    X = np.asarray(run["X"], np.float32)
+    H = np.asarray(run["H"], np.float32)
+    Y = np.asarray(se2.compose(H, X[:, None, :]), np.float32)
+    traj = np.asarray(run["traj"], np.float32)
+    ends = np.asarray(run["window_end"])
+    starts = np.asarray(run["window_start"])
+    k = len(ends)
+    tr = np.zeros((k, STEP, 3), np.float32)
+    tm = np.zeros((k, STEP), bool)
+    hd = np.zeros((k, T, 3), np.float32)
+    hm = np.zeros((k, T), bool)
+    prev = -1
+    for i, e in enumerate(ends):
+        chunk = traj[prev + 1 : e + 1]
+        n = min(len(chunk), STEP)
+        tr[i, :n], tm[i, :n] = chunk[len(chunk) - n :], True
+        if len(chunk) > n:
+            assert i == 0, "only the first window may bring more keyframes than STEP"
+            hd[i, : len(chunk) - n], hm[i, : len(chunk) - n] = chunk[: len(chunk) - n], True
+        prev = int(e)
+    wm = np.asarray(run["window_mask"], bool)
+    last = np.zeros(k, bool)
+    last[np.flatnonzero(wm)[-1]] = True
+    return WindowEvidence(
+        Y=Y, score=np.asarray(run["score"], np.float32), mask=np.asarray(run["mask"], bool),
+        X=X, traj=tr, traj_mask=tm, head=hd, head_mask=hm, start=starts.astype(np.int32),
+        ev_points=np.asarray(run["ev_points"], np.float32),
+        ev_origins=np.asarray(run["ev_origins"], np.float32),
+        ev_mask=np.asarray(run["ev_mask"], bool), valid=wm, last=last,
+        restart=np.arange(k) == 0,
+    )  # fmt: skip
+
+
+@lru_cache(maxsize=None)
+def _compiled():
+    return jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
+
+
+def lanes_of(params=None, ours=tuple(OURS_VARIANTS), baselines=True):
+    return make_lanes(params, ours, baselines, primary=None)
+
+
+def evaluate_runs(runs, maps, params=None, ours=tuple(OURS_VARIANTS), baselines=True):
+    """Every lane's ``Decision`` at every window: host leaves ``(R, K, L, ...)``, and the
+    lane names."""
+    p, lanes, spec = lanes_of(params, ours, baselines)
+    ev = jax.tree.map(lambda *x: np.stack(x), *[evidence_of(r) for r in runs])
+    b = np.zeros(len(runs), np.int32)
+    out = _compiled()(maps, None, b, p.as_arrays(), jax.tree.map(jnp.asarray, lanes), ev,
+                      caps=CAPS, spec=spec)  # fmt: skip
+    return jax.tree.map(np.asarray, out), spec.names

@@ -34,7 +34,7 @@ def _commit(**kw):
 
 # ------------------------------------------------------------------ text for a person
 def test_every_reason_and_state_is_explained():
-    from mfcl_jax.decision.state import REASONS, STATE_NAMES
+    from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
 
     assert set(status.REASON_TEXT) == set(REASONS.values()) - {""}
     assert set(status.STATE_TEXT) == set(STATE_NAMES.values())

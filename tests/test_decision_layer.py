@@ -346,3 +346,23 @@ def test_a_path_that_leaves_the_map_is_never_committed():
     inside = make_run(walk([[3, 2.5], [26, 2.5]], step=23.0 / (T - 1)), A, K, probe_cands, J=J,
                       fp=ROW_FP)  # fmt: skip
     assert names[int(ours(run_all([inside])).state[-1])] == "COMMIT"
+
+
+def test_a_restart_decides_the_new_segment_as_a_run_of_its_own():
+    """An odometry jump: the layer starts over at the window flagged ``restart``; the
+    windows after it are decided as the same windows would be in a run of their own."""
+    run = run_of(probe_cands)
+    one = evidence_of(run)
+    two = jax.tree.map(lambda a: np.concatenate([a, a]), one)  # the walk again, after a jump
+    assert two.restart.tolist() == [True] + [False] * (K - 1) + [True] + [False] * (K - 1)
+    two = type(two)(**{**two.__dict__, "last": np.arange(2 * K) == 2 * K - 1})
+    p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
+    state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
+                       CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
+    _, d = jax.jit(lambda s, e: jax.lax.scan(layer.update, s, e))(state, two)
+    first, again = (jax.tree.map(lambda a, s=s: np.asarray(a)[s, 0], d)
+                    for s in (slice(0, K), slice(K, 2 * K)))  # fmt: skip
+    for f in ("state", "kind", "b1", "b2", "reason"):
+        np.testing.assert_array_equal(getattr(first, f), getattr(again, f), err_msg=f)
+    np.testing.assert_allclose(first.anchor, again.anchor, atol=1e-5)
+    assert 2 in first.state.tolist()

@@ -111,19 +111,22 @@ class _StubLocalizer:
     def __init__(self, fp, params=None):
         self.fp = fp
 
-    def n_windows(self, seq):
+    def estimate(self, seq):
         return 2
 
     def run(self, seq):
-        from mfcl_jax.decision.stream import Decision
+        from mfcl_jax.decision import Decision
         from mfcl_jax.robot.localizer import WindowResult
 
         cx, cy = (float(v) for v in self.fp.room_centroids[0])
+        zero = {f: np.zeros((), np.int32) for f in Decision.__dataclass_fields__}
         for k in (1, 2):
-            state = "COMMIT" if k == 2 else "DEFER"
-            d = Decision(k, float(k), state, (cx + 0.123456789, cy, 0.25), None, None,
-                         {"B1": 3, "B2": 0, "margin": 3})  # fmt: skip
-            yield WindowResult(d, 0, 0, float(k), np.zeros(3), 0, 0.1, 0, 0)
+            d = Decision(**{**zero, "state": np.int32(2 if k == 2 else 0),
+                            "anchor": np.array([cx + 0.123456789, cy, 0.25]),
+                            "tau": np.zeros(2), "b1": np.int32(3), "margin": np.int32(3),
+                            "competitor": np.zeros(3), "alias_motion": np.zeros(3)})  # fmt: skip
+            yield WindowResult(k, d, 0, 0, float(k), np.zeros(3), 0, 0.1, 0, 0, False,
+                               np.zeros(3))  # fmt: skip
 
 
 @pytest.mark.parametrize("shift", SHIFTS, ids=["1e7", "utm"])

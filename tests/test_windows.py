@@ -151,35 +151,37 @@ def test_an_odometry_restart_splits_the_windows_and_nothing_else_does():
     assert W.odometry_segments(odo, seq.times)[-1] == 0
 
 
-def test_the_decision_driver_decides_each_odometry_segment_on_its_own():
-    from mfcl_jax.decision.driver import _merge_segments, split_segments
-    from mfcl_jax.decision.evaluate import RunInputs
+def test_run_inputs_start_the_layer_over_at_an_odometry_jump():
+    """``decision.runs.run_inputs``: the first window of each odometry segment restarts the
+    layer, its keyframe indices count from the segment's start, and its keyframes before the
+    last ``step`` go to ``head`` (an empty history extends no walk)."""
+    from types import SimpleNamespace
+
+    from mfcl_jax.decision.runs import run_inputs
+    from mfcl_jax.frontend.candidates import Candidates
 
     K, T, J, P = 6, 24, 2, 4
     traj = np.zeros((1, T, 3), np.float32)
     traj[0, :, 0] = np.arange(T) * 0.25
-    traj[0, 12:, 0] -= traj[0, 12, 0] - 0.0  # restart at sample 12...
-    traj[0, 12:, 1] = 9.0  # ...9 m away from the last pose
-    t = np.arange(T) * 0.5
+    seg = np.zeros((1, T), np.int32)
+    seg[0, 12:] = 1  # a restart at sample 12
     start = np.array([[0, 3, 6, 12, 15, 18]], np.int32)
-    runs = RunInputs(
-        H=np.arange(K * J * 3, dtype=np.float32).reshape(1, K, J, 3),
-        score=np.ones((1, K, J), np.float32), mask=np.ones((1, K, J), bool),
-        traj=traj, traj_mask=np.ones((1, T), bool), window_start=start,
-        window_end=start + 5, window_mask=np.ones((1, K), bool),
-        X=np.zeros((1, K, 3), np.float32), ev_points=np.zeros((1, K, P, 2), np.float32),
-        ev_origins=np.zeros((1, K, P, 2), np.float32), ev_mask=np.ones((1, K, P), bool),
-    )  # fmt: skip
-    seg = W.odometry_segments(traj[0], t)  # the restart at sample 12
-    split, pieces = split_segments(runs, seg[None])
-    np.testing.assert_array_equal(pieces, [[0, 0, 3], [0, 3, 3]])
-    # the second segment starts its own trajectory and windows at 0
-    np.testing.assert_array_equal(split.window_start[1, :3], [0, 3, 6])
-    np.testing.assert_array_equal(split.traj[1, :12], traj[0, 12:])
-    assert split.traj_mask[1].sum() == 12 and split.window_mask[1].sum() == 3
-    np.testing.assert_array_equal(split.H[1, :3], runs.H[0, 3:])
-    back = _merge_segments({"H": split.H}, pieces, 1, K)["H"]
-    np.testing.assert_array_equal(back, runs.H)
-    # one segment: unchanged
-    same, p1 = split_segments(runs, np.zeros((1, T), int))  # one segment
-    assert same is runs and len(p1) == 1
+    runs = SimpleNamespace(traj=traj, traj_seg=seg, traj_mask=np.ones((1, T), bool),
+                           window_start=start, window_end=start + 5,
+                           window_mask=np.ones((1, K), bool), submap=np.arange(K)[None])
+    sub = SimpleNamespace(n=K, X=np.zeros((K, 3), np.float32))
+    ev = SimpleNamespace(points=np.zeros((K, P, 2), np.float32),
+                         origins=np.zeros((K, P, 2), np.float32), mask=np.ones((K, P), bool))
+    batch = SimpleNamespace(runs=runs, submaps=sub, evidence=ev)
+    cands = Candidates(np.zeros((K, J, 3), np.float32), np.ones((K, J), np.float32),
+                       np.ones((K, J), bool), np.zeros(K, np.int32))  # fmt: skip
+    e = run_inputs(batch, cands, min_step=4).evidence
+    assert e.restart[0].tolist() == [True, False, False, True, False, False]
+    np.testing.assert_array_equal(e.start[0], [0, 3, 6, 0, 3, 6])
+    # window 0 brings samples 0..5; window 1 the 3 after (6..8); window 3 samples 12..17
+    got = lambda k: np.concatenate([e.head[0, k][e.head_mask[0, k]],  # noqa: E731
+                                    e.traj[0, k][e.traj_mask[0, k]]])
+    np.testing.assert_array_equal(got(0)[:, 0], traj[0, 0:6, 0])
+    np.testing.assert_array_equal(got(1)[:, 0], traj[0, 6:9, 0])
+    np.testing.assert_array_equal(got(3)[:, 0], traj[0, 12:18, 0])
+    assert e.traj_mask.shape[2] == 16 and e.last[0].tolist() == [False] * 5 + [True]

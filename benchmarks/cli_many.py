@@ -24,7 +24,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def make_datasets(root: pathlib.Path, n: int) -> list[str]:
-    from mfcl_jax.floorplan import families
+    from mfcl_jax.sim import families
     from mfcl_jax.sources.simulated import simulate_dataset
 
     names = []

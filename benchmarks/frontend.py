@@ -23,7 +23,7 @@ Definitions:
   0.5 m), its position / heading error before and after refinement (same candidate).
 
 Timing (all in this one process, compile time apart, medians of interleaved repetitions):
-- stage: the pipeline cut after each stage (``registry.register_stages``), every prefix run
+- stage: the pipeline cut after each stage (``registration.register_stages``), every prefix run
   on the same chunks in turn within each repetition; ``ms_per_submap`` is the median over
   repetitions of the difference to the previous prefix in the same repetition.
 - driver: ``FrontEnd.register`` (host padding included) on every benchmark submap, per chunk
@@ -49,8 +49,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from mfcl_jax import se2  # noqa: E402
 from mfcl_jax import windows as W  # noqa: E402
-from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps  # noqa: E402
-from mfcl_jax.sim.scenes import get_scene  # noqa: E402
 from mfcl_jax.frontend import (  # noqa: E402
     FrontendParams,
     build_features,
@@ -60,13 +58,11 @@ from mfcl_jax.frontend import (  # noqa: E402
     sanitize_submaps,
 )
 from mfcl_jax.frontend.driver import FrontEnd  # noqa: E402
-from mfcl_jax.frontend.registry import (  # noqa: E402
-    COMPILER_OPTIONS,
-    STAGES,
-    register_debug,
-    register_stages,
-)
+from mfcl_jax.frontend.params import COMPILER_OPTIONS  # noqa: E402
+from mfcl_jax.frontend.registration import STAGES, register_debug, register_stages  # noqa: E402
+from mfcl_jax.sim.scenes import get_scene  # noqa: E402
 from mfcl_jax.sources.simulated import simulate  # noqa: E402
+from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps  # noqa: E402
 
 SCENES = ("three_rooms", "symmetric_bays")
 D_S = (5.0, 6.0, 7.0)

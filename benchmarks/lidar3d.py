@@ -28,11 +28,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.sim.scenes import three_rooms
-from mfcl_jax.io.errors import atomic_write_text
+from mfcl_jax.io.atomic import atomic_write_text
 from mfcl_jax.robot.localizer import Localizer
 from mfcl_jax.score import format_table, score_decisions, summarize
 from mfcl_jax.sim.lidar3d import livox_mid360
+from mfcl_jax.sim.scenes import three_rooms
 from mfcl_jax.sources.cloud3d import BandParams, slice_clouds
 from mfcl_jax.sources.sequence import ScanSequence
 from mfcl_jax.sources.walk3d import scene_walk3d, walk3d

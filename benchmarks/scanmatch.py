@@ -30,8 +30,8 @@ from mfcl_jax import se2  # noqa: E402
 from mfcl_jax import windows as W  # noqa: E402
 from mfcl_jax.bench import suite  # noqa: E402
 from mfcl_jax.bench.config import BenchmarkConfig, validate  # noqa: E402
-from mfcl_jax.windows.odometry import Odometer  # noqa: E402
 from mfcl_jax.score import pose_at  # noqa: E402
+from mfcl_jax.windows.odometry import Odometer  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[1] / "results"
 FAMILIES = ["bag:intel", "log:intel", "log:freiburg-101", "log:orebro", "log:seattle",

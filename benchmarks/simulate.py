@@ -18,10 +18,10 @@ import jax
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.windows.arrays import bucket
-from mfcl_jax.sim.scenes import SCENES, get_scene
 from mfcl_jax.sim import SimParams, cast, simulate
+from mfcl_jax.sim.scenes import SCENES, get_scene
 from mfcl_jax.sim.trajectory import sample_path
+from mfcl_jax.windows.arrays import bucket
 
 D_S = (5.0, 6.0, 7.0)
 

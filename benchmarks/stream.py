@@ -29,8 +29,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
-    from mfcl_jax import windows as W
     from mfcl_jax.decision.stream import SelectiveInitializer
+
+    from mfcl_jax import windows as W
     from mfcl_jax.frontend.driver import FrontEnd
     from mfcl_jax.sources.simulated import simulate
 

@@ -2,9 +2,10 @@
 
 Without ``-m`` a comma list (``families=plain,bays``, ``policies=ours,mcl``, ``faults=drift,
 clutter``) is batched in ONE process. With ``-m`` Hydra launches one job per value (basic,
-joblib, or a cluster launcher), each writing its ``runs.csv`` into its job folder, and
+joblib, or Submitit: ``hydra/launcher=slurm`` for a SLURM job array, ``conf/hydra/launcher``;
+``submitit_local`` for local processes), each writing its ``runs.csv`` into its job folder, and
 ``python -m experiments.merge_benchmark multirun/benchmark/<date>/<time>`` builds the same
-tables from them.
+tables from them. Split by ``families``: every job then runs different recordings.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
 
 from mfcl_jax.decision.params import DecisionParams
-from mfcl_jax.frontend.registry import FrontendParams
+from mfcl_jax.frontend.params import FrontendParams
 from mfcl_jax.sim import SimParams
 from mfcl_jax.windows import WindowParams
 

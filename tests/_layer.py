@@ -2,14 +2,14 @@
 ``vmap`` over runs of ``lax.scan(layer.update)``, compiled once per lane set for one padded
 map shape, as ``decision.runs`` does for real batches."""
 
-from functools import lru_cache
+from functools import cache
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import OURS_VARIANTS, Caps, DecisionParams, decision_maps, make_lanes
+from mfcl_jax.decision import OURS_VARIANTS, Caps, decision_maps, make_lanes
 from mfcl_jax.decision.layer import WindowEvidence
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.runs import scan_runs
@@ -59,7 +59,7 @@ def evidence_of(run) -> WindowEvidence:
     )  # fmt: skip
 
 
-@lru_cache(maxsize=None)
+@cache
 def _compiled():
     return jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
 

@@ -166,8 +166,8 @@ def test_comma_lists_batch_in_one_run_and_split_per_job_in_a_multirun():
 
 
 def test_frontend_recall_scores_the_best_candidate_and_any():
-    from mfcl_jax.frontend.candidates import Candidates
     from mfcl_jax.bench.recall import recall_table, window_hits
+    from mfcl_jax.frontend.candidates import Candidates
 
     pose = np.array([[[5.0, 0.0, 0.0], [0.2, 0.1, 0.02], [0.0, 0.0, 0.0]]] * 2, np.float32)
     score = np.array([[0.9, 0.5, 0.0], [0.4, 0.8, 0.0]], np.float32)

@@ -9,9 +9,9 @@ import pytest
 
 from mfcl_jax.cli import main
 from mfcl_jax.floorplan import save_geojson
-from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.io import read_decisions, read_tum
 from mfcl_jax.robot.status import robot_pose
+from mfcl_jax.sim.scenes import get_scene
 
 # 209 -> 208 -> 207 along the corridor side (the start of the scene's T1): about 28 m, 11
 # windows of 6 m; AMBIGUOUS (the 14.6 m period of 207/208) until the last window commits.

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import build_parser, main
-from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.io import read_decisions, read_tum
 from mfcl_jax.sim.lidar3d import cast3d, livox_mid360
+from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.sim.world3d import build_geometry
 from mfcl_jax.sources import write_dataset
 from mfcl_jax.sources.cloud3d import BandParams

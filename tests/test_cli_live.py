@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import main
-from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.io import DataError, read_decisions
 from mfcl_jax.robot.live import Follower
+from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.sources import write_dataset
 
 # R1 -> door line -> R2 and on: 73 scans, 6 windows of 6 m.

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import main
-from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.io import read_decisions
+from mfcl_jax.sim.scenes import symmetric_bays
 
 WALKS = {
     "east": [(1.0, 4.2), (3.0, 1.8), (16.0, 1.8)],

@@ -14,10 +14,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mfcl_jax.robot import status
 from mfcl_jax.cli import build_parser, main
 from mfcl_jax.io import DataError, read_decisions, write_decisions
 from mfcl_jax.io.decisions import decision_line
+from mfcl_jax.robot import status
 from mfcl_jax.robot.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]

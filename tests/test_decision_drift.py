@@ -20,8 +20,8 @@ from tests.test_decision_layer import (
     J,
     K,
     ours,
-    run_all,
     probe_cands,
+    run_all,
 )
 from tests.test_decision_scenes import evidence_at, walk
 

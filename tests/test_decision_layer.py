@@ -10,10 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mfcl_jax import se2
-from mfcl_jax.decision import REASONS, DecisionParams, sanitize, to_frame
-from mfcl_jax.decision import layer
+from mfcl_jax.decision import REASONS, DecisionParams, layer, sanitize, to_frame
 from mfcl_jax.decision.runs import TRACES
-from tests._layer import CAPS, K, J, T, evaluate_runs, evidence_of, lanes_of, maps_of
+from tests._layer import CAPS, J, K, T, evaluate_runs, evidence_of, lanes_of, maps_of
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, shift, three_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L

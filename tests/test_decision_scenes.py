@@ -71,8 +71,8 @@ def to_odom(traj_b, anchor):
 def evidence_at(fp, poses):
     """What a clean 360-beam LiDAR sees of ``fp``'s walls at ``poses (K, 3)``: the evidence
     samples ``(points, origins, mask)`` ``(K, P, ...)`` in each pose's frame."""
-    from mfcl_jax.windows.arrays import evidence_sample
     from mfcl_jax.sim import LidarParams, cast, scan_points
+    from mfcl_jax.windows.arrays import evidence_sample
 
     lidar = LidarParams(n_beams=360, sigma=0.0, dropout=0.0)
     pts = np.asarray(scan_points(cast(np.asarray(poses), fp.wall_faces, lidar)), np.float64)

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import LineString, MultiLineString
 
+from mfcl_jax.floorplan.geojson import load_geojson
 from mfcl_jax.report.plots_scene import plot_family
 from mfcl_jax.sim.families import (
     FAMILIES,
@@ -22,7 +23,6 @@ from mfcl_jax.sim.families import (
     with_scale_error,
     write_family_geojson,
 )
-from mfcl_jax.floorplan.geojson import load_geojson
 from mfcl_jax.sim.scenes import Scene
 from mfcl_jax.sim.trajectory import sample_path
 

@@ -13,10 +13,8 @@ from _frontend_synth import batch, make_submap
 from shapely.geometry import box
 
 from mfcl_jax import se2
-from mfcl_jax.windows.arrays import SubmapBatch
 from mfcl_jax.floorplan.model import Door, Floorplan, Room
 from mfcl_jax.floorplan.raster import Rasters, bilinear, pad_to
-from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.frontend import (
     FrontendParams,
     build_features,
@@ -26,11 +24,13 @@ from mfcl_jax.frontend import (
     load_candidates_csv,
     make_register,
     refine,
-    registry,
+    registration,
     sanitize_submaps,
     verify,
 )
 from mfcl_jax.frontend.features import floorplan_corners
+from mfcl_jax.sim.scenes import get_scene
+from mfcl_jax.windows.arrays import SubmapBatch
 
 N, P = 4, 2048
 SHAPE = (200, 360)  # common raster bucket: one compilation for every test floor plan
@@ -103,9 +103,9 @@ def asym():
         make_submap(fp, (11.0, 2.0), (14.0, 5.0), -2.0, n_beams=240),
         make_submap(fp, (6.0, 6.5), (2.0, 4.0), 2.5, n_beams=240),
     ]
-    before = registry.TRACE_COUNT[0]
+    before = registration.TRACE_COUNT[0]
     c = REG(pad_batch(subs), feats_for(fp))
-    return fp, subs, c, registry.TRACE_COUNT[0] - before
+    return fp, subs, c, registration.TRACE_COUNT[0] - before
 
 
 def test_noise_free_submap_true_pose_top1(asym):
@@ -299,9 +299,9 @@ def test_common_features_one_trace_for_both_buildings():
     assert shapes(fa) == shapes(fb)
     sub = make_submap(fps[1], (8.8, 3.0), (12.8, 4.4), 0.3, n_beams=240)
     b = pad_batch([sub])
-    before = registry.TRACE_COUNT[0]
+    before = registration.TRACE_COUNT[0]
     ca, cb = REG(b, fa), REG(b, fb)
-    assert registry.TRACE_COUNT[0] - before == 1
+    assert registration.TRACE_COUNT[0] - before == 1
     assert ca.pose.shape == cb.pose.shape == (N, PARAMS.J, 3)
     # Padding keeps the plan in place: the truth scores best. The bays are symmetric, so the
     # one-pitch alias ties with the truth to the last bit and rounding orders the two.
@@ -312,10 +312,10 @@ def test_common_features_one_trace_for_both_buildings():
 def test_one_trace_for_every_batch_of_a_shape(asym):
     fp, subs, _, traced = asym
     assert traced == 1  # the fixture's first call: one trace for the whole batch
-    before = registry.TRACE_COUNT[0]
+    before = registration.TRACE_COUNT[0]
     REG(pad_batch(subs[:1]), feats_for(fp.transformed((1.0, 0.0, 0.0))))
     REG(pad_batch(subs[1:]), feats_for(fp))
-    assert registry.TRACE_COUNT[0] == before
+    assert registration.TRACE_COUNT[0] == before
 
 
 def test_bad_inputs_give_reasons(asym):

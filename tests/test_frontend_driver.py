@@ -10,9 +10,9 @@ import pytest
 from _frontend_synth import batch, make_submap
 
 from mfcl_jax import se2
-from mfcl_jax.sim.scenes import get_scene
-from mfcl_jax.frontend import build_features, make_register, registry
+from mfcl_jax.frontend import build_features, make_register, registration
 from mfcl_jax.frontend.driver import FrontEnd
+from mfcl_jax.sim.scenes import get_scene
 
 P = 1024
 SCENES = ("three_rooms", "symmetric_bays")
@@ -33,9 +33,9 @@ def run():
     ]
     building = np.array([1, 0, 0])
     fe = FrontEnd(fps, chunk=2)
-    before = registry.TRACE_COUNT[0]
+    before = registration.TRACE_COUNT[0]
     c = fe.register(batch(subs, P), building)
-    return fps, subs, building, fe, c, registry.TRACE_COUNT[0] - before
+    return fps, subs, building, fe, c, registration.TRACE_COUNT[0] - before
 
 
 def test_one_compilation_for_the_buildings_given_at_construction(run):

@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mfcl_jax.sim.scenes import Scene, rect_segments, symmetric_bays, three_rooms
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.sim.lidar3d import Lidar3DParams, _cast3d_jit, beam_directions, cast3d, livox_mid360
 from mfcl_jax.sim.raycast import LidarParams, cast, scan_points
+from mfcl_jax.sim.scenes import Scene, rect_segments, symmetric_bays, three_rooms
 from mfcl_jax.sim.world3d import build_geometry, first_hit
 from mfcl_jax.sources.cloud3d import BandParams, Mount, slice_cloud, slice_clouds
 from mfcl_jax.sources.floor import detect_floor

@@ -13,12 +13,12 @@ from hypothesis import strategies as st
 
 from mfcl_jax import se2
 from mfcl_jax import windows as W
-from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.peers import MCLParams, commits, pad_batch, prepare_mcl_inputs, run_mcl, trace_count
 from mfcl_jax.peers import mcl_model as mm
 from mfcl_jax.peers.mcl import MCLTrace
 from mfcl_jax.sim import LidarParams, cast, sample_path, scan_points
+from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.sources.simulated import simulate as scene_recordings
 
 

@@ -1,7 +1,7 @@
 """Rivals of a commit: the global search of the whole path, and what the certification does
 with what it finds (decision.rivals, certify, layer)."""
 
-from functools import lru_cache
+from functools import cache
 
 import jax
 import jax.numpy as jnp
@@ -57,7 +57,7 @@ def test_search_places_an_asymmetric_path_where_it_was_walked():
     assert not np.asarray(none).any()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _step():
     return jax.jit(layer.update)
 

@@ -9,10 +9,10 @@ import pytest
 
 from mfcl_jax import windows as W
 from mfcl_jax.io import read_decisions, write_decisions
-from mfcl_jax.windows.odometry import ScanMatchParams
 from mfcl_jax.score import score_batch, score_decisions
 from mfcl_jax.sources import Recording, ScanSequence
 from mfcl_jax.sources.recording import GroundTruth
+from mfcl_jax.windows.odometry import ScanMatchParams
 
 # The line sequence's scans move with the sensor (not a rigid world), so the tests of the
 # cutting itself use the input odometry as it is.
@@ -166,12 +166,21 @@ def test_run_inputs_start_the_layer_over_at_an_odometry_jump():
     seg = np.zeros((1, T), np.int32)
     seg[0, 12:] = 1  # a restart at sample 12
     start = np.array([[0, 3, 6, 12, 15, 18]], np.int32)
-    runs = SimpleNamespace(traj=traj, traj_seg=seg, traj_mask=np.ones((1, T), bool),
-                           window_start=start, window_end=start + 5,
-                           window_mask=np.ones((1, K), bool), submap=np.arange(K)[None])
+    runs = SimpleNamespace(
+        traj=traj,
+        traj_seg=seg,
+        traj_mask=np.ones((1, T), bool),
+        window_start=start,
+        window_end=start + 5,
+        window_mask=np.ones((1, K), bool),
+        submap=np.arange(K)[None],
+    )
     sub = SimpleNamespace(n=K, X=np.zeros((K, 3), np.float32))
-    ev = SimpleNamespace(points=np.zeros((K, P, 2), np.float32),
-                         origins=np.zeros((K, P, 2), np.float32), mask=np.ones((K, P), bool))
+    ev = SimpleNamespace(
+        points=np.zeros((K, P, 2), np.float32),
+        origins=np.zeros((K, P, 2), np.float32),
+        mask=np.ones((K, P), bool),
+    )
     batch = SimpleNamespace(runs=runs, submaps=sub, evidence=ev)
     cands = Candidates(np.zeros((K, J, 3), np.float32), np.ones((K, J), np.float32),
                        np.ones((K, J), bool), np.zeros(K, np.int32))  # fmt: skip
@@ -179,8 +188,12 @@ def test_run_inputs_start_the_layer_over_at_an_odometry_jump():
     assert e.restart[0].tolist() == [True, False, False, True, False, False]
     np.testing.assert_array_equal(e.start[0], [0, 3, 6, 0, 3, 6])
     # window 0 brings samples 0..5; window 1 the 3 after (6..8); window 3 samples 12..17
-    got = lambda k: np.concatenate([e.head[0, k][e.head_mask[0, k]],  # noqa: E731
-                                    e.traj[0, k][e.traj_mask[0, k]]])
+    got = lambda k: np.concatenate(
+        [
+            e.head[0, k][e.head_mask[0, k]],  # noqa: E731
+            e.traj[0, k][e.traj_mask[0, k]],
+        ]
+    )
     np.testing.assert_array_equal(got(0)[:, 0], traj[0, 0:6, 0])
     np.testing.assert_array_equal(got(1)[:, 0], traj[0, 6:9, 0])
     np.testing.assert_array_equal(got(3)[:, 0], traj[0, 12:18, 0])

@@ -5,7 +5,7 @@ naming the option and the value (``BenchmarkError``).
 
 Sources of runs ("families"):
 
-* procedural building families (``floorplan.families``), ``walks`` walks per building and
+* procedural building families (``sim.families``), ``walks`` walks per building and
   ``seeds`` buildings per family;
 * ``ifc:<model>``: the shared IFC models with ``ifc_walks`` random door-to-door tours each
   (per seed);

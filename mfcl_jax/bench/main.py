@@ -17,8 +17,8 @@ import pandas as pd
 from mfcl_jax.bench import figures, report, suite
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, validate
 from mfcl_jax.bench.run import collect, decide_and_score
-from mfcl_jax.report.tables import write_table
 from mfcl_jax.io.atomic import atomic_write
+from mfcl_jax.report.tables import write_table
 
 __all__ = ["run_benchmark", "write_tables", "write_margins", "read_runs", "merge"]
 
@@ -158,7 +158,7 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
 def _pictures(cfg: BenchmarkConfig, out: Path) -> None:
     """One picture per family (seed 0) with its walks drawn."""
     from mfcl_jax.report.plots_scene import plot_family
-    from mfcl_jax.floorplan import families
+    from mfcl_jax.sim import families
 
     for fam in cfg.families:
         if fam in PROCEDURAL:

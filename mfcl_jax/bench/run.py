@@ -201,8 +201,8 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     Returns:
         One row per run x window x set x policy with the scorer's columns and the run's meta.
     """
-    from mfcl_jax.frontend.candidates import Candidates
     from mfcl_jax.decision.runs import decide
+    from mfcl_jax.frontend.candidates import Candidates
     from mfcl_jax.score import score_batch
 
     batch = W.concat(col.batches)

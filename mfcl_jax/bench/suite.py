@@ -39,7 +39,7 @@ def _scene(family: str, seed: int):
     """One ``Scene`` object per (family, seed): its nominal runs and every fault run that
     keeps the plan share one ``Floorplan``, so features, rasters and gate maps are built once
     (the fault constructors return new scenes, never change this one)."""
-    from mfcl_jax.floorplan import families
+    from mfcl_jax.sim import families
 
     return families.make_scene(family, seed)
 
@@ -151,7 +151,7 @@ def nominal_recordings(cfg: BenchmarkConfig) -> list:
 
 def _faulted(axis: str, level, fam: str, seed: int):
     """(scene or None, SimParams) of one fault level for one base building."""
-    from mfcl_jax.floorplan import families
+    from mfcl_jax.sim import families
 
     scene = _scene(fam, seed)
     lidar, traj = LidarParams(), TrajectoryParams()

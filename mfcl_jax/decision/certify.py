@@ -262,9 +262,11 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
             contra = jnp.maximum(adv, jnp.max(sb_t[:1] - sb, axis=1) / scale)
             at = (j * CHUNK,)
             hi = jax.lax.dynamic_update_slice(
-                hi, jnp.maximum(jax.lax.dynamic_slice(hi, at, (CHUNK,)), contra), at)
+                hi, jnp.maximum(jax.lax.dynamic_slice(hi, at, (CHUNK,)), contra), at
+            )
             lo = jax.lax.dynamic_update_slice(
-                lo, jnp.minimum(jax.lax.dynamic_slice(lo, at, (CHUNK,)), adv), at)
+                lo, jnp.minimum(jax.lax.dynamic_slice(lo, at, (CHUNK,)), adv), at
+            )
             return hi, lo
 
         return jax.lax.fori_loop(0, n_chunks, chunk, acc)

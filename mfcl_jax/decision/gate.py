@@ -101,7 +101,8 @@ def start_walk(shape) -> Walk:
 
 
 def extend_walk(maps: DecisionMaps, H, traj, valid, walk: Walk) -> Walk:
-    """``walk`` extended by the samples ``traj (T, 3)`` (``valid (T,)``) mapped by ``H (..., 3)``."""
+    """``walk`` extended by the samples ``traj (T, 3)`` (``valid (T,)``) mapped by anchors
+    ``H (..., 3)``."""
     return walk_labels(maps, labels(maps, H, traj), valid, walk)
 
 

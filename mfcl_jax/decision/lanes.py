@@ -120,7 +120,8 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
             ug, up, uc, bm, dm, q = OURS_VARIANTS[n]
             bm = float(s.b_min) if bm < 0 else bm
             dm = float(s.delta_min) if dm < 0 else dm
-            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), modes.index((ug, syms.index(q)))))
+            mode = modes.index((ug, syms.index(q)))
+            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode))
             names.append(n)
             lane_sets.append(i)
     c = list(zip(*cols, strict=True))

@@ -29,8 +29,15 @@ import jax.numpy as jnp
 from mfcl_jax import se2
 from mfcl_jax.decision import baselines, certify, gate, machine, rivals, rule
 from mfcl_jax.decision.anchors import sanitize
-from mfcl_jax.decision.history import Caps, History, Path, empty_history, empty_path
-from mfcl_jax.decision.history import push_path, push_window
+from mfcl_jax.decision.history import (
+    Caps,
+    History,
+    Path,
+    empty_history,
+    empty_path,
+    push_path,
+    push_window,
+)
 from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import DecisionMaps
 from mfcl_jax.decision.outcome import COMMIT, Decision
@@ -162,10 +169,8 @@ def advance(state: LayerState, traj, traj_mask) -> LayerState:
     """Keyframes that arrive without a window (more than ``Caps.step`` since the last one)."""
     h = state.history
     walk = gate.extend_walk(state.world.maps, h.H, traj, traj_mask, h.walk)
-    return LayerState(
-        state.world, History(**{**h.__dict__, "walk": walk}), push_path(state.path, traj, traj_mask),
-        state.held, state.base, state.rivals, state.rivals_ok, state.searches, state.n_rejected,
-    )  # fmt: skip
+    return LayerState(**{**state.__dict__, "history": History(**{**h.__dict__, "walk": walk}),
+                         "path": push_path(state.path, traj, traj_mask)})  # fmt: skip
 
 
 def _cores(world: World, h: History, path: Path, cons):

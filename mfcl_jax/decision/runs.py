@@ -84,8 +84,8 @@ def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs
     evw = layer.WindowEvidence(
         Y=np.asarray(cands.pose)[idx], score=np.asarray(cands.score)[idx],
         mask=np.asarray(cands.mask)[idx] & ok[..., None], X=np.asarray(sub.X)[idx],
-        traj=tr, traj_mask=tm, head=hd, head_mask=hm, start=starts, ev_points=np.asarray(ev.points)[idx],
-        ev_origins=np.asarray(ev.origins)[idx],
+        traj=tr, traj_mask=tm, head=hd, head_mask=hm, start=starts,
+        ev_points=np.asarray(ev.points)[idx], ev_origins=np.asarray(ev.origins)[idx],
         ev_mask=np.asarray(ev.mask)[idx] & ok[..., None], valid=ok, last=lasts,
         restart=restarts,
     )  # fmt: skip
@@ -117,8 +117,9 @@ def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None)
 TRACES = {"scan_runs": 0}  # incremented at trace time; tests count recompilations with it
 
 
-def scan_runs(maps, fields, building, params, lanes, evidence, caps, spec, n_img=0,
-              rp=rivals.DEFAULT_RIVALS):
+def scan_runs(
+    maps, fields, building, params, lanes, evidence, caps, spec, n_img=0, rp=rivals.DEFAULT_RIVALS
+):
     """``vmap`` over runs of ``lax.scan(update)``: Decision leaves ``(R, K, L, ...)``.
 
     ``maps`` (and ``fields``) are stacked per building ``(B, ...)``, run ``r`` reading
@@ -200,8 +201,10 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         bidx = np.asarray([local_b.index(b) for b in rb[idx]], np.int32)
         n = len(idx)
         kw = _bucket(int(inputs.n_windows[idx].max()), 16, 16)
-        ev = jax.tree.map(lambda a: _fit_windows(_pad_rows(np.asarray(a)[idx], runs_per_call), kw),
-                          inputs.evidence)  # fmt: skip
+        ev = jax.tree.map(
+            lambda a, i=idx, w=kw: _fit_windows(_pad_rows(np.asarray(a)[i], runs_per_call), w),
+            inputs.evidence,
+        )
         ev = layer.WindowEvidence(**{**ev.__dict__, "valid": np.where(
             (np.arange(runs_per_call) < n)[:, None], ev.valid, False)})  # fmt: skip
         bidx = _pad_rows(bidx, runs_per_call)
@@ -217,7 +220,7 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         t0 = time.perf_counter()
         dec = jax.block_until_ready(_COMPILED[key](*args))
         tm["run_s"] += time.perf_counter() - t0
-        dec = jax.tree.map(lambda a: _fit_windows(np.asarray(a)[:n], K), dec)
+        dec = jax.tree.map(lambda a, n=n: _fit_windows(np.asarray(a)[:n], K), dec)
         if out is None:
             out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
         for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
@@ -244,8 +247,6 @@ def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
 
 
-
-
 def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
            primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
            buildings_per_call: int = 8, progress=None, **floors):  # fmt: skip
@@ -270,6 +271,7 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
 
     p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
     steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
-    dec, tm = decide_runs(run_inputs(batch, cands, **steps), batch.run_building, floorplans, p,
-                          ln, spec, runs_per_call, buildings_per_call, progress, **floors)  # fmt: skip
+    inputs = run_inputs(batch, cands, **steps)
+    dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
+                          buildings_per_call, progress, **floors)  # fmt: skip
     return to_frame(dec, spec, batch.runs.window_mask), tm

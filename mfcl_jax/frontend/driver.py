@@ -18,9 +18,11 @@ import time
 import jax
 import numpy as np
 
-from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps
+from mfcl_jax.frontend import params as fe_params
+from mfcl_jax.frontend import plan as fe_plan
+from mfcl_jax.frontend import registration
 from mfcl_jax.frontend.candidates import Candidates
-from mfcl_jax.frontend import registry
+from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps
 
 __all__ = ["FrontEnd"]
 
@@ -46,20 +48,20 @@ class FrontEnd:
     """
 
     def __init__(
-        self, floorplans=(), params: registry.FrontendParams | None = None, chunk=16, multiple=128
+        self, floorplans=(), params: fe_params.FrontendParams | None = None, chunk=16, multiple=128
     ):
         self.floorplans = list(floorplans)
-        self.params = params or registry.FrontendParams()
+        self.params = params or fe_params.FrontendParams()
         self.chunk = int(chunk)
         self.multiple = int(multiple)
         self._fn = jax.jit(
-            lambda sub, feats: registry.register(sub, feats, self.params),
-            compiler_options=registry.COMPILER_OPTIONS,
+            lambda sub, feats: registration.register(sub, feats, self.params),
+            compiler_options=fe_params.COMPILER_OPTIONS,
         )
         self._shared = self._bucket(self.floorplans) if self.floorplans else None
         self._n_shared = len(self.floorplans)
         self._compiled: dict = {}
-        self._feats: dict[int, registry.FloorplanFeatures] = {}
+        self._feats: dict[int, fe_plan.FloorplanFeatures] = {}
         self.compile_s = 0.0
         self.run_s = 0.0
 
@@ -70,18 +72,18 @@ class FrontEnd:
 
     def _bucket(self, floorplans) -> dict:
         """``build_features`` shape arguments of the bucket holding ``floorplans``."""
-        kw = registry.common_shape(floorplans, multiple=self.multiple)
+        kw = fe_plan.common_shape(floorplans, multiple=self.multiple)
         # Coarse buckets: a benchmark adds hundreds of buildings; each new bucket compiles.
         kw["n_rooms"] = _pow2(kw["n_rooms"], 32)
         # Every submap corner is paired with every plan corner slot: no wider than needed.
         kw["corner_capacity"] = _pow2(max(len(fp.corners[0]) for fp in floorplans), 256)
         return kw
 
-    def features(self, b: int) -> registry.FloorplanFeatures:
+    def features(self, b: int) -> fe_plan.FloorplanFeatures:
         """Features of building ``b`` in its shape bucket (cached until ``release``)."""
         if b not in self._feats:
             kw = self._shared if b < self._n_shared else self._bucket([self.floorplans[b]])
-            self._feats[b] = registry.build_features(self.floorplans[b], self.params, **kw)
+            self._feats[b] = fe_plan.build_features(self.floorplans[b], self.params, **kw)
         return self._feats[b]
 
     def release(self, b: int | None = None) -> None:
@@ -114,7 +116,7 @@ class FrontEnd:
         Returns:
             ``Candidates`` with leading axis ``N`` (host arrays), in the input order.
         """
-        sub = registry.sanitize_submaps(jax.tree.map(np.asarray, submaps))
+        sub = registration.sanitize_submaps(jax.tree.map(np.asarray, submaps))
         building = np.asarray(building, np.int64).reshape(-1)
         n, J = sub.n, self.params.J
         pose = np.zeros((n, J, 3), np.float32)

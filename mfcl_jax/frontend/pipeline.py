@@ -103,8 +103,8 @@ def candidates_of(f, feats, p, stop=None):
     """Second half on one submap, from its ``features_of`` dict ``f``.
 
     Returns:
-        ``(pose (J, 3), score (J,), mask (J,), reason, debug)`` (see ``registry.register``
-        and ``registry.register_debug``), or the output of stage ``stop``.
+        ``(pose (J, 3), score (J,), mask (J,), reason, debug)`` (see ``registration.register``
+        and ``registration.register_debug``), or the output of stage ``stop``.
     """
     sub = partial(features.subsample, f["points"], f["origins"], f["mask"], compacted=True)
     n_valid, peaks, peak_ok = f["n_valid"], f["peaks"], f["peak_ok"]

@@ -3,13 +3,13 @@ layouts, static transforms), CARMEN logs, decision logs, and safe atomic output;
 looked up at scan stamps (``timesync``) and scan units checked (``units``)."""
 
 from mfcl_jax.io.atomic import atomic_write, check_output
-from mfcl_jax.io.bag import BagScans, read_bag
+from mfcl_jax.io.bag import BagScans, read_bag, read_tf_static
 from mfcl_jax.io.carmen import CarmenLog, read_carmen
 from mfcl_jax.io.decisions import read_decisions, write_decisions
 from mfcl_jax.io.errors import DataError, DataWarning
 from mfcl_jax.io.pcd import read_pcd, write_pcd
 from mfcl_jax.io.pointcloud2 import pointcloud2_points
-from mfcl_jax.io.tf_static import planar_pose, read_tf_static, transform_between, xyz_rpy
+from mfcl_jax.io.tf_static import planar_pose, transform_between, xyz_rpy
 from mfcl_jax.io.timesync import interpolate_se2, odometry_at
 from mfcl_jax.io.tum import read_tum, write_tum
 

@@ -21,13 +21,12 @@ import stat
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write", "check_output", "publish_mode"]
+from mfcl_jax.io.errors import DataError
+
+__all__ = ["atomic_write", "atomic_write_text", "check_output", "publish_mode"]
 
 
 def _error(msg: str):
-    # Imported here: errors.py imports this module.
-    from mfcl_jax.io.errors import DataError
-
     return DataError(msg)
 
 
@@ -145,3 +144,8 @@ def atomic_write(path, data: str | bytes) -> Path:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
     return path
+
+
+def atomic_write_text(path, text: str) -> Path:
+    """Writes ``text`` to ``path`` through a temporary file renamed into place."""
+    return atomic_write(path, text)

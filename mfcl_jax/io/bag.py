@@ -38,7 +38,7 @@ from mfcl_jax.io.timesync import odometry_at
 from mfcl_jax.io.tum import unit_quaternions, yaw_from_quat
 from mfcl_jax.io.units import check_metres
 
-__all__ = ["BagScans", "read_bag", "open_bag"]
+__all__ = ["read_tf_static", "BagScans", "read_bag", "open_bag"]
 
 _SCAN_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2")
 _ODOM_TYPES = ("nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage")
@@ -271,3 +271,22 @@ def _pair(where, s_t, scans, o_t, o_p, offset, extra) -> BagScans:
         odom_duplicates=o_dup,
         **extra,
     )
+
+
+def read_tf_static(path, topic: str = "/tf_static") -> dict[tuple[str, str], np.ndarray]:
+    """All static transforms of a bag, as ``static_edges``.
+
+    Raises:
+        DataError: unreadable bag, or no ``topic`` (the topics present are listed).
+    """
+    path = Path(path)
+    reader = open_bag(path)
+    try:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            listing = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
+            raise DataError(f"{path}: no topic {topic!r}; topics present: {listing}")
+        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
+    finally:
+        reader.close()
+    return static_edges(msgs, f"{path} {topic}")

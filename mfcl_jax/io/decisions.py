@@ -15,7 +15,8 @@ import json
 import math
 from pathlib import Path
 
-from mfcl_jax.io.errors import DataError, atomic_write_text
+from mfcl_jax.io.atomic import atomic_write_text
+from mfcl_jax.io.errors import DataError
 
 __all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMMETRIES"]
 

@@ -13,7 +13,6 @@ degenerate one is a ``DataError``).
 from __future__ import annotations
 
 from collections import deque
-from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +23,6 @@ __all__ = [
     "matrix_from_quaternion",
     "static_edges",
     "transform_between",
-    "read_tf_static",
     "planar_pose",
     "xyz_rpy",
     "sensor_poses",
@@ -104,27 +102,6 @@ def transform_between(edges, parent: str, child: str, where: str = "/tf_static")
     raise DataError(
         f"{where}: no static transform joins {parent!r} to {child!r}; frames present: {frames}"
     )
-
-
-def read_tf_static(path, topic: str = "/tf_static") -> dict[tuple[str, str], np.ndarray]:
-    """All static transforms of a bag, as ``static_edges``.
-
-    Raises:
-        DataError: unreadable bag, or no ``topic`` (the topics present are listed).
-    """
-    from mfcl_jax.io.bag import open_bag
-
-    path = Path(path)
-    reader = open_bag(path)
-    try:
-        conns = [c for c in reader.connections if c.topic == topic]
-        if not conns:
-            listing = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
-            raise DataError(f"{path}: no topic {topic!r}; topics present: {listing}")
-        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
-    finally:
-        reader.close()
-    return static_edges(msgs, f"{path} {topic}")
 
 
 def xyz_rpy(T) -> np.ndarray:

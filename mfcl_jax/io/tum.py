@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mfcl_jax.io.errors import DataError, DataWarning, atomic_write_text
+from mfcl_jax.io.atomic import atomic_write_text
+from mfcl_jax.io.errors import DataError, DataWarning
 
 __all__ = [
     "QUAT_NORM_TOL",

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
-from mfcl_jax.windows.arrays import bucket
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.windows.arrays import bucket
 
 __all__ = ["MCLBatch", "pad_batch", "prepare_mcl_inputs"]
 

@@ -2,7 +2,7 @@
 
 The same pieces as the study and the benchmark: windows are cut by ``windows`` (causally, as
 they complete: ``windows.Cutter``), and each window goes through ONE jitted step: the
-front-end registers the submap (``frontend.registry.register``), the layer anchors its
+front-end registers the submap (``frontend.registration.register``), the layer anchors its
 candidates and decides (``decision.layer.update``). The layer's state stays on the device
 between windows; per window one transfer goes in (the submap, the new keyframes, the
 evidence sample) and one comes out (the decision). Ground truth never enters.
@@ -17,17 +17,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax.robot import status
 from mfcl_jax import windows as W
-from mfcl_jax.windows.arrays import EVIDENCE_POINTS, SubmapBatch, bucket, evidence_sample
-from mfcl_jax.decision import layer, lattice, rivals
+from mfcl_jax.decision import lattice, layer, rivals
 from mfcl_jax.decision.history import Caps
 from mfcl_jax.decision.lanes import make_lanes
 from mfcl_jax.decision.maps import decision_maps
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
 from mfcl_jax.decision.params import DecisionParams
-from mfcl_jax.frontend import FrontendParams, registry
+from mfcl_jax.frontend import COMPILER_OPTIONS, FrontendParams, registration
 from mfcl_jax.frontend.driver import FrontEnd
+from mfcl_jax.robot import status
+from mfcl_jax.windows.arrays import EVIDENCE_POINTS, SubmapBatch, bucket, evidence_sample
 
 __all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize", "record_of"]
 
@@ -132,7 +132,7 @@ class WindowResult:
 
 def _step(world, memory, sub, feats, X, traj, traj_mask, start, ev, fe_params):
     """register -> anchor -> decide, for one window (the robot's whole step)."""
-    c = registry.register(sub, feats, fe_params)
+    c = registration.register(sub, feats, fe_params)
     f32 = jnp.float32
     evidence = layer.WindowEvidence(
         Y=c.pose[0], score=c.score[0], mask=c.mask[0], X=X, traj=traj, traj_mask=traj_mask,
@@ -172,7 +172,7 @@ class Localizer:
         self._init = (maps, p.as_arrays(), self.params.caps, jax.tree.map(jnp.asarray, lanes),
                       spec, fields, n_img)  # fmt: skip
         self._step = jax.jit(_step, static_argnames=("fe_params",), donate_argnums=(1,),
-                             compiler_options=registry.COMPILER_OPTIONS)  # fmt: skip
+                             compiler_options=COMPILER_OPTIONS)  # fmt: skip
         self._advance = jax.jit(_advance, donate_argnums=(1,))
         self._capacity = bucket(self.params.window.capacity, 256)
 
@@ -216,8 +216,8 @@ class Localizer:
                 tr[: len(traj)] = traj
                 prev_end = j1
                 memory, dec, reason, n_cand = self._step(
-                    world, memory, self._submap(w), self._feats, np.asarray(w.X[0], np.float32), tr, tm,
-                    np.int32(j0 - base), evidence_sample(w.points[0], w.origins[0]),
+                    world, memory, self._submap(w), self._feats, np.asarray(w.X[0], np.float32),
+                    tr, tm, np.int32(j0 - base), evidence_sample(w.points[0], w.origins[0]),
                     fe_params=self.params.frontend,
                 )  # fmt: skip
                 yield WindowResult(
@@ -239,7 +239,7 @@ class Localizer:
         sub = SubmapBatch(points, origins, mask, np.asarray(w.X, np.float32)[:1],
                           np.zeros(1, np.int32), np.zeros(1, np.int32), np.asarray(w.t)[:1],
                           np.zeros(1, np.int32))  # fmt: skip
-        return registry.sanitize_submaps(sub)
+        return registration.sanitize_submaps(sub)
 
 
 def localize(floorplan, seq, params: LocalizeParams | None = None) -> list:

@@ -71,8 +71,8 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
     Yields:
         ``(index, BatchResult)`` per sequence, in order, as each chunk completes.
     """
-    from mfcl_jax.decision.runs import decide_runs, run_inputs
     from mfcl_jax.decision.lanes import make_lanes
+    from mfcl_jax.decision.runs import decide_runs, run_inputs
     from mfcl_jax.frontend.driver import FrontEnd
 
     params = params or LocalizeParams()
@@ -90,8 +90,8 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
         with progress.stage(f"recordings {idx[0] + 1}-{idx[-1] + 1} of {len(seqs)}: cutting "
                             "windows (LiDAR odometry)"):  # fmt: skip
             wins = W.cut_many((seqs[i], params.window) for i in idx)
-        items = [(seqs[i], w, plans.index(id(floorplans[i]))) for i, w in zip(idx, wins)
-                 if len(w)]  # fmt: skip
+        items = [(seqs[i], w, plans.index(id(floorplans[i])))
+                 for i, w in zip(idx, wins, strict=True) if len(w)]  # fmt: skip
         done = {i: BatchResult([], []) for i in idx}
         if items:
             batch = W.pack(items, capacity=cap)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -69,6 +70,10 @@ class RunLabel:
     identifiable_k: np.ndarray  # (K,) bool per window
     n_alternatives: int  # uncontradicted alternatives at the last window
     alternative: tuple | None  # the strongest uncontradicted alternative g (B -> B) at the end
+
+
+# the scorer jits the search it calls (the kernel itself is a plain function)
+_SEARCH = jax.jit(ps.search, static_argnames=("p", "n_img"))
 
 
 def _scan_arrays(seq, kf, truth, p: LabelParams):
@@ -185,7 +190,7 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
             ext = float(np.max(np.abs(np.concatenate([cp[cm], cf[cfm]]) - c))) if cm.any() else 1
             # image side in buckets of 64 cells: a handful of compilations for every run
             n_img = int(-(-(2 * ext + 2) / fields.c_res // 64) * 64)
-            g, sc = ps.search(cp - c, cm, cf - c, cfm, fields, p.search, n_img)
+            g, sc = _SEARCH(cp - c, cm, cf - c, cfm, fields, p.search, n_img)
             g, sc = np.asarray(g, np.float64), np.asarray(sc)
             good = np.isfinite(sc) & (sc >= p.keep_ratio * np.max(sc, initial=0.0))
             g, sc = g[good], sc[good]

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from mfcl_jax.floorplan.model import Floorplan
-from mfcl_jax.io.errors import atomic_write_text
+from mfcl_jax.io.atomic import atomic_write_text
 from mfcl_jax.sources.occmap import occupancy_grid, write_rosmap
 
 __all__ = [

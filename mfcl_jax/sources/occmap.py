@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from mfcl_jax.io.errors import atomic_write_text
+from mfcl_jax.io.atomic import atomic_write_text
 
 __all__ = ["occupancy_grid", "write_rosmap"]
 

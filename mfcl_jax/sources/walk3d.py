@@ -68,8 +68,8 @@ def walk3d(
         lidar2d: the 2-D twin's LiDAR (default ``LidarParams()``).
         tag: names the walk in the key derivation (as ``simulate_walk``'s ``tag``).
     """
-    from mfcl_jax.sim.scenes import Scene
     from mfcl_jax.sim import SimParams
+    from mfcl_jax.sim.scenes import Scene
     from mfcl_jax.sources.simulated import run_key, simulate
 
     sensor = sensor or Lidar3DParams()

@@ -18,14 +18,14 @@ import pandas as pd
 
 from mfcl_jax import se2
 from mfcl_jax import windows as W
-from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.decision import runs as decision_runs
 from mfcl_jax.decision.lanes import OURS_VARIANTS
 from mfcl_jax.decision.params import DecisionParams
-from mfcl_jax.sim.scenes import get_scene
+from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.score import pose_at, score_batch
 from mfcl_jax.sim import SimParams
+from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.sources.simulated import simulate
 
 __all__ = ["Timings", "StudyData", "prepare", "register_all", "decide", "score", "log"]

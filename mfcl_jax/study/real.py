@@ -249,7 +249,7 @@ def _bag_cases(params: LocalizeParams, out: Path, n_windows: int = 2, length: fl
 
 
 def _write_tables(rows: list[dict], info: dict, out: Path) -> None:
-    from mfcl_jax.io.errors import atomic_write_text
+    from mfcl_jax.io.atomic import atomic_write_text
 
     df = pd.DataFrame(rows)
     atomic_write_text(out / "summary.csv", df.to_csv(index=False))

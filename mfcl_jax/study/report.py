@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax.report import figures, tables
-from mfcl_jax.sim.scenes import BAY_PITCH, get_scene
 from mfcl_jax.score import first_commits
+from mfcl_jax.sim.scenes import BAY_PITCH, get_scene
 from mfcl_jax.study import paper
 
 __all__ = ["KEYS", "firsts_of", "symmetric_summary", "build_tables", "build_figures"]

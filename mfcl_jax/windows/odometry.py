@@ -260,7 +260,8 @@ def _step(th, carry, inp):
     poor = valid & ~reset & mapped & (fit > th["jump_fit"])
     alt = sparse_cond(poor, _alternatives, (prev, prev_inc, pred, scan, smask, flat, th))
     pose2, fit2 = jnp.where(poor, alt[0], pred), jnp.where(poor, alt[1], jnp.inf)
-    jump = poor & ~_near(pose2, pose, th) & (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
+    better = (fit2 <= th["jump_fit"]) & (fit2 * th["jump_ratio"] <= fit)
+    jump = poor & ~_near(pose2, pose, th) & better
     start = reset | jump
     pose = jnp.where(start, odo, pose)
     mmask = jnp.where(start, False, mmask)

@@ -12,7 +12,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from mfcl_jax.windows.arrays import EVIDENCE_POINTS, Evidence, RunBatch, SubmapBatch, bucket, evidence_sample
+from mfcl_jax.windows.arrays import (
+    EVIDENCE_POINTS,
+    Evidence,
+    RunBatch,
+    SubmapBatch,
+    bucket,
+    evidence_sample,
+)
 
 __all__ = ["WindowBatch", "pack", "concat"]
 

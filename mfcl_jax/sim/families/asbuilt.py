@@ -21,9 +21,9 @@ import shapely
 from shapely.geometry import LineString, MultiLineString, Polygon
 from shapely.geometry.polygon import orient
 
+from mfcl_jax.floorplan.model import Floorplan
 from mfcl_jax.sim.families.clutter import WALK_KEEP_OUT
 from mfcl_jax.sim.families.walks import CLEAR, clearance
-from mfcl_jax.floorplan.model import Floorplan
 from mfcl_jax.sim.trajectory import sample_path
 
 __all__ = ["with_as_built", "AS_BUILT_KINDS", "NotApplicable", "seeded"]

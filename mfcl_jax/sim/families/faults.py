@@ -17,9 +17,9 @@ import math
 import numpy as np
 from shapely import affinity
 
+from mfcl_jax.floorplan.model import Door, Floorplan, Room
 from mfcl_jax.sim.families.asbuilt import seeded
 from mfcl_jax.sim.families.clutter import furnish
-from mfcl_jax.floorplan.model import Door, Floorplan, Room
 from mfcl_jax.sim.world3d import DEFAULT_CLUTTER_HEIGHT
 
 __all__ = ["with_clutter", "with_scale_error"]

@@ -64,7 +64,8 @@ def _walks(office: bool):
         yield "three_rooms", label, scene.floorplan, sensor, w, kinds
     if office and OFFICE_IFC.exists():
         from mfcl_jax.floorplan.load import load_floorplan
-        from mfcl_jax.study.real import OFFICE, route
+        from mfcl_jax.sources.walks import route
+        from mfcl_jax.study.real_walks import OFFICE
 
         fp = load_floorplan(OFFICE_IFC, storey=OFFICE["storey"])
         name = "open_office_to_113"

@@ -164,8 +164,8 @@ def test_localize_bad_inputs(sim, tmp_path, capsys):
     shutil.rmtree(broken)
     shutil.copytree(ds, broken)
     scan = sorted((broken / "scans").iterdir())[3]
-    scan.rename(scan.with_name("99999.pcd"))
-    _fails(["localize", str(broken), "--out", str(out)], capsys, "99999.pcd")
+    scan.rename(scan.with_name("scan_three.pcd"))  # a scan's name is its time stamp
+    _fails(["localize", str(broken), "--out", str(out)], capsys, "scan_three.pcd")
     _fails(
         ["localize", str(ds), "--floorplan", str(tmp_path / "x.ifc"), "--out", str(out)],
         capsys,

@@ -365,3 +365,41 @@ def test_a_restart_decides_the_new_segment_as_a_run_of_its_own():
         np.testing.assert_array_equal(getattr(first, f), getattr(again, f), err_msg=f)
     np.testing.assert_allclose(first.anchor, again.anchor, atol=1e-5)
     assert 2 in first.state.tolist()
+
+
+def test_a_run_of_500_windows_outlives_the_capacities_and_says_so():
+    """A long run: the history keeps the newest ``CAPS.windows`` windows and the newest
+    ``CAPS.traj`` keyframes (fixed shapes, so every window costs the same); older windows leave
+    the consensus and are counted (``Decision.dropped``), a commit keeps being tracked, the
+    path keeps its distance, and no number turns non-finite."""
+    run = run_of(probe_cands)
+    one = evidence_of(run)
+    n = 500
+    reps = -(-n // K)
+    # the same walk again and again, without a restart: the path goes on (a loop)
+    many = jax.tree.map(lambda a: np.concatenate([a] * reps)[:n], one)
+    ends = np.asarray(run["window_end"])
+    starts = np.concatenate([np.asarray(run["window_start"]) + r * (ends[-1] + 1)
+                             for r in range(reps)])[:n]  # fmt: skip
+    many = type(many)(**{**many.__dict__, "restart": np.arange(n) == 0,
+                         "start": starts.astype(np.int32),
+                         "head": np.zeros((n, 0, 3), np.float32),
+                         "head_mask": np.zeros((n, 0), bool),
+                         "last": np.arange(n) == n - 1})  # fmt: skip
+    first = jax.tree.map(lambda a: a[:1], one)  # window 1 brings its whole keyframe prefix
+    p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
+    state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
+                       CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
+    state, d0 = jax.jit(layer.update)(state, jax.tree.map(lambda a: a[0], first))
+    rest = jax.tree.map(lambda a: a[1:], many)
+    rest = type(rest)(**{**rest.__dict__, "restart": np.zeros(n - 1, bool)})
+    state, d = jax.jit(lambda s, e: jax.lax.scan(layer.update, s, e))(state, rest)
+    d = jax.tree.map(lambda a: np.asarray(a)[:, 0], d)
+    assert d.dropped[-1] == n - K  # every window beyond the capacity is counted
+    assert (np.diff(d.dropped) >= 0).all() and d.dropped[K - 2] == 0
+    assert int(state.history.n) == K and int(state.path.n) == T
+    assert int(state.path.total) > T  # keyframes kept counting past the buffer
+    assert 2 in d.state.tolist() and d.state[-1] == 2  # the commit is held to the end
+    assert np.isfinite(d.anchor).all() and np.isfinite(float(state.path.dist))
+    dxy, _ = se2.distance_pair(d.anchor[-1], A)
+    assert float(dxy) < 0.1

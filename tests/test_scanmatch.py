@@ -12,7 +12,8 @@ from mfcl_jax.score import pose_at
 from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.trajectory import TrajectoryParams
 from mfcl_jax.sources.simulated import simulate
-from mfcl_jax.windows.odometry import Odometer, ScanMatchParams, scan_match, thin_scan
+from mfcl_jax.windows.icp import ScanMatchParams, thin_scan
+from mfcl_jax.windows.odometry import Odometer, scan_match
 
 
 def _drifting(drift_xy=0.03, drift_yaw=2.0, seed=0):

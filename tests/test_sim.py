@@ -14,9 +14,8 @@ from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams, cast, sample_
 from mfcl_jax.sim import raycast as rc
 from mfcl_jax.sim.scenes import symmetric_bays
 from mfcl_jax.sources.simulated import simulate
-from mfcl_jax.windows import window_bounds
+from mfcl_jax.windows import ScanMatchParams, window_bounds
 from mfcl_jax.windows.arrays import RunBatch, SubmapBatch
-from mfcl_jax.windows.odometry import ScanMatchParams
 
 EXACT = LidarParams(n_beams=360, sigma=0.0, dropout=0.0)
 CLEAN = SimParams(lidar=EXACT, trajectory=TrajectoryParams(drift_xy=0.0, drift_yaw_deg_per_m=0.0))

@@ -12,7 +12,7 @@ from mfcl_jax.io import read_decisions, write_decisions
 from mfcl_jax.score import score_batch, score_decisions
 from mfcl_jax.sources import Recording, ScanSequence
 from mfcl_jax.sources.recording import GroundTruth
-from mfcl_jax.windows.odometry import ScanMatchParams
+from mfcl_jax.windows import ScanMatchParams
 
 # The line sequence's scans move with the sensor (not a rigid world), so the tests of the
 # cutting itself use the input odometry as it is.
@@ -187,13 +187,11 @@ def test_run_inputs_start_the_layer_over_at_an_odometry_jump():
     e = run_inputs(batch, cands, min_step=4).evidence
     assert e.restart[0].tolist() == [True, False, False, True, False, False]
     np.testing.assert_array_equal(e.start[0], [0, 3, 6, 0, 3, 6])
+
     # window 0 brings samples 0..5; window 1 the 3 after (6..8); window 3 samples 12..17
-    got = lambda k: np.concatenate(
-        [
-            e.head[0, k][e.head_mask[0, k]],  # noqa: E731
-            e.traj[0, k][e.traj_mask[0, k]],
-        ]
-    )
+    def got(k):
+        return np.concatenate([e.head[0, k][e.head_mask[0, k]], e.traj[0, k][e.traj_mask[0, k]]])
+
     np.testing.assert_array_equal(got(0)[:, 0], traj[0, 0:6, 0])
     np.testing.assert_array_equal(got(1)[:, 0], traj[0, 6:9, 0])
     np.testing.assert_array_equal(got(3)[:, 0], traj[0, 12:18, 0])

@@ -26,7 +26,7 @@ from mfcl_jax.bench.config import BenchmarkConfig, validate
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.frontend.params import FrontendParams
 from mfcl_jax.score import CORRECT_XY, CORRECT_YAW_DEG, pose_at
-from mfcl_jax.windows.odometry import ScanMatchParams
+from mfcl_jax.windows import ScanMatchParams
 
 __all__ = ["VARIANTS", "window_hits", "recall_table", "main"]
 

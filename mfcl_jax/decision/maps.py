@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
-from mfcl_jax.decision import symmetry
+from mfcl_jax.decision import congruence, symmetry
 from mfcl_jax.floorplan.raster import Rasters
 
 __all__ = [
@@ -112,79 +112,12 @@ jax.tree_util.register_dataclass(
 )
 
 
-def _congruent_offsets(r: Rasters, min_iou: float) -> np.ndarray:
-    """Centroid offsets ``b - a`` between rooms whose cell sets match after translation."""
-    rid = np.asarray(r.room_id)
-    h, w = rid.shape
-    cells, cents = [], []
-    for i in range(r.n_rooms):
-        iy, ix = np.nonzero(rid == i)
-        cells.append((iy, ix))
-        cents.append(np.array([ix.mean(), iy.mean()]) if ix.size else np.array([np.nan] * 2))
-    out = []
-    for a in range(r.n_rooms):
-        for b in range(a + 1, r.n_rooms):
-            (ya, xa), (yb, xb) = cells[a], cells[b]
-            if (
-                xa.size == 0
-                or xb.size == 0
-                or min(xa.size, xb.size) < min_iou * max(xa.size, xb.size)
-            ):
-                continue
-            sx, sy = np.round(cents[a] - cents[b]).astype(int)
-            key_a = ya.astype(np.int64) * (4 * w) + xa
-            key_b = (yb + sy).astype(np.int64) * (4 * w) + (xb + sx)
-            inter = np.intersect1d(key_a, key_b, assume_unique=True).size
-            if inter / (xa.size + xb.size - inter) >= min_iou:
-                off = (cents[b] - cents[a]) * r.res
-                out.extend([off, -off])
-    return np.asarray(out, np.float64).reshape(-1, 2)
-
-
-def _fundamentals(offsets: np.ndarray, tol: float) -> np.ndarray:
-    """Offsets (one sign) that are not integer multiples of a shorter offset."""
-    canon = [o if (o[0] > 1e-6 or (abs(o[0]) <= 1e-6 and o[1] > 0)) else -o for o in offsets]
-    canon = sorted(canon, key=lambda o: float(np.hypot(*o)))
-    keep: list[np.ndarray] = []
-    for o in canon:
-        redundant = False
-        for f in keep:
-            n = round(float(np.dot(o, f) / np.dot(f, f)))
-            if n >= 1 and np.hypot(*(o - n * f)) <= tol:
-                redundant = True
-                break
-        if not redundant:
-            keep.append(o)
-    return np.asarray(keep, np.float64).reshape(-1, 2)
-
-
 def _pad(a: np.ndarray, n: int, what: str = "room offsets") -> tuple[np.ndarray, np.ndarray]:
     if a.shape[0] > n:
         raise ValueError(f"decision_maps: {a.shape[0]} {what} exceed the capacity {n}")
     out = np.zeros((n, a.shape[1]), np.float32)
     out[: a.shape[0]] = a
     return out, np.arange(n) < a.shape[0]
-
-
-def _congruent_offsets_poly(fp, min_iou: float) -> np.ndarray:
-    """Centroid offsets ``b - a`` between rooms whose polygons match after translation (exact
-    geometry, so an exact copy scores IoU 1 whatever its offset on the grid)."""
-    from shapely import affinity
-
-    polys = [room.polygon for room in fp.rooms]
-    cents = [np.array([p.centroid.x, p.centroid.y]) for p in polys]
-    out = []
-    for a in range(len(polys)):
-        for b in range(a + 1, len(polys)):
-            pa, pb = polys[a], polys[b]
-            if min(pa.area, pb.area) < min_iou * max(pa.area, pb.area):
-                continue
-            off = cents[b] - cents[a]
-            moved = affinity.translate(pa, off[0], off[1])
-            inter = moved.intersection(pb).area
-            if inter / (pa.area + pb.area - inter) >= min_iou:
-                out.extend([off, -off])
-    return np.asarray(out, np.float64).reshape(-1, 2)
 
 
 # Rooms whose footprints overlap this much after centroid alignment are treated as translated
@@ -195,18 +128,9 @@ def _congruent_offsets_poly(fp, min_iou: float) -> np.ndarray:
 MIN_CONGRUENT_IOU = 0.8
 
 
-def _symmetry(source, r, min_iou, max_offsets, max_generators, dedupe, max_motions):
-    """The ``Symmetry`` (host arrays, unpadded capacities resolved) at one threshold."""
-    if isinstance(source, Rasters):
-        offs = _congruent_offsets(r, min_iou)
-    else:
-        offs = _congruent_offsets_poly(source, min_iou)
-    uniq: list[np.ndarray] = []
-    for o in offs:
-        if all(np.hypot(*(o - u)) > dedupe for u in uniq):
-            uniq.append(o)
-    offs = np.asarray(uniq, np.float64).reshape(-1, 2)
-    gens = _fundamentals(offs, dedupe)[:max_generators]
+def _symmetry(source, r, min_iou, max_generators, dedupe):
+    """Offsets, generators and rotational motions (host arrays) at one threshold."""
+    offs, gens = congruence.translations(source, r, min_iou, dedupe, max_generators)
     if isinstance(source, Rasters):
         mots = np.zeros((0, 3))
     else:
@@ -272,8 +196,7 @@ def decision_maps(
     for i in exterior:
         adj[i, n] = adj[n, i] = True
     ious = (min_iou,) if np.ndim(min_iou) == 0 else tuple(min_iou)
-    sets = [_symmetry(source, r, m, max_offsets, max_generators, dedupe, max_motions)
-            for m in ious]  # fmt: skip
+    sets = [_symmetry(source, r, m, max_generators, dedupe) for m in ious]
     n_off = max_offsets or _bucket(max(len(o) for o, _, _ in sets), 32)
     n_mot = max_motions or _bucket(max(len(m) for _, _, m in sets), 8)
     cols = []

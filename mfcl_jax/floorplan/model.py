@@ -15,6 +15,8 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.ops import unary_union
 
+from mfcl_jax.floorplan.outline import boundary_segments, wall_corners
+
 __all__ = [
     "FloorplanError",
     "FloorplanWarning",
@@ -25,9 +27,6 @@ __all__ = [
 ]
 
 DEFAULT_WALL_THICKNESS = 0.15
-# Wall corners (``Floorplan.corners``): boundary simplification (m) and the most kept.
-CORNER_SIMPLIFY = 0.05
-MAX_CORNERS = 512
 # A door must come this close (m) to a room's polygon to count as touching it; rooms are
 # usually drawn to the wall faces, doors across the wall centre line.
 DOOR_TOUCH_TOL = 0.5
@@ -205,7 +204,7 @@ class Floorplan:
     @cached_property
     def wall_faces(self) -> np.ndarray:
         """Wall surface segments ``(F, 2, 2)``: the boundary of the wall solid."""
-        return _boundary_segments(self.wall_solid)
+        return boundary_segments(self.wall_solid)
 
     @cached_property
     def corners(self) -> tuple[np.ndarray, np.ndarray]:
@@ -216,33 +215,14 @@ class Floorplan:
         vertices (within 20 deg of 180) are dropped. A corner's salience is its shorter arm
         (edge length, m); at most ``MAX_CORNERS`` are kept, the most salient: a SLAM map's
         furniture blobs give thousands of tiny corners that would drown the structural ones
-        in the front-end's vote budget. Plans with fewer corners keep them all.
+        in the front-end's vote budget. Plans with fewer corners keep them all. The constants
+        and the code are in ``mfcl_jax.floorplan.outline`` (``wall_corners``).
 
         Returns:
             ``(points (C, 2), directions (C, 2))``: each corner's position and the angles (rad)
             of its two boundary edges, pointing away from the corner; most salient first.
         """
-        pts, dirs, sal = [], [], []
-        for ring in _rings(self.wall_solid.simplify(CORNER_SIMPLIFY)):
-            xy = np.asarray(ring.coords)[:-1]
-            n = len(xy)
-            for i in range(n):
-                p, a, b = xy[i], xy[i - 1], xy[(i + 1) % n]
-                da, db = a - p, b - p
-                la, lb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
-                if la < 1e-6 or lb < 1e-6:
-                    continue
-                ang_a, ang_b = math.atan2(da[1], da[0]), math.atan2(db[1], db[0])
-                between = abs((ang_a - ang_b + math.pi) % (2 * math.pi) - math.pi)
-                if between > math.radians(160):
-                    continue
-                pts.append(p)
-                dirs.append((ang_a, ang_b))
-                sal.append(min(la, lb))
-        pts = np.asarray(pts, float).reshape(-1, 2)
-        dirs = np.asarray(dirs, float).reshape(-1, 2)
-        keep = np.argsort(-np.asarray(sal), kind="stable")[:MAX_CORNERS]  # most salient first
-        return pts[keep].reshape(-1, 2), dirs[keep].reshape(-1, 2)
+        return wall_corners(self.wall_solid)
 
     @cached_property
     def room_centroids(self) -> np.ndarray:
@@ -296,22 +276,3 @@ class Floorplan:
         if key not in self._cache:
             self._cache[key] = rasterize(self, res=res, margin=margin)
         return self._cache[key]
-
-
-def _rings(geom) -> list:
-    polys = geom.geoms if isinstance(geom, MultiPolygon) else [geom]
-    rings = []
-    for p in polys:
-        if p.is_empty:
-            continue
-        rings.append(p.exterior)
-        rings.extend(p.interiors)
-    return rings
-
-
-def _boundary_segments(geom) -> np.ndarray:
-    segs = []
-    for ring in _rings(geom):
-        xy = np.asarray(ring.coords)
-        segs.extend(np.stack([xy[:-1], xy[1:]], axis=1))
-    return np.asarray(segs, float).reshape(-1, 2, 2)

@@ -21,19 +21,22 @@ Scores are means: ``hit`` (mean wall proximity of the points) minus ``lam`` time
 mean obstacle value of ray samples and sensor positions), so clutter that the plan lacks is
 neither rewarded nor punished, while a placement that puts the robot in a wall or its rays
 through walls is.
+
+The settings and the plan fields are in ``path_fields``, the per-scan statistics of given
+placements (``evaluate_placements``) in ``placements``; both are re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
+from mfcl_jax.frontend.path_fields import PlanFields, SearchParams, plan_fields, sample_field
+from mfcl_jax.frontend.placements import evaluate_placements
 
 __all__ = [
     "SearchParams",
@@ -50,103 +53,10 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class SearchParams:
-    """Static settings of the search (a change recompiles)."""
-
-    coarse_res: float = 0.5
-    sigma_coarse: float = 0.5
-    yaw_step_deg: float = 5.0
-    peaks_per_yaw: int = 6
-    n_peaks: int = 24  # coarse peaks polished
-    polish_points: int = 512  # points (and half as many free samples) used to polish
-    n_out: int = 12  # placements returned
-    sigma_fine: float = 0.12
-    lam: float = 1.0
-    nms_xy: float = 1.0
-    nms_deg: float = 6.0
-
-
-@dataclass(frozen=True)
-class PlanFields:
-    """The plan as the search reads it (pytree; padded to a bucket for shared compilation).
-
-    Attributes:
-        origin: ``(2,)`` fine grid lower-left corner (m); res: fine cell (m, static).
-        dist: ``(H, W)`` distance to the nearest wall solid (m), for ray marching.
-        hit: ``(H, W)`` fine wall-proximity field at ``sigma_fine``.
-        bad: ``(H, W)`` fine obstacle field (1 in walls and outside the building).
-        c_hit, c_bad: ``(Hc, Wc)`` the coarse fields; c_res: their cell (m, static): the fine
-            cell times the block factor nearest to ``coarse_res``.
-    """
-
-    origin: jax.Array
-    dist: jax.Array
-    hit: jax.Array
-    bad: jax.Array
-    c_hit: jax.Array
-    c_bad: jax.Array
-    res: float = 0.10
-    c_res: float = 0.40
-
-
-jax.tree_util.register_dataclass(
-    PlanFields,
-    data_fields=["origin", "dist", "hit", "bad", "c_hit", "c_bad"],
-    meta_fields=["res", "c_res"],
-)
-
-
-def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> PlanFields:
-    """``PlanFields`` from ``Rasters`` (host); ``shape`` pads the fine grid to a bucket."""
-    r = rasters.to_numpy()
-    dist = np.asarray(r.dist, np.float64)
-    bad = (np.asarray(r.wall) | ~np.asarray(r.inside)).astype(np.float64)
-    h, w = dist.shape
-    H, W = shape or (h, w)
-    f = max(1, int(round(params.coarse_res / r.res)))
-    H, W = -(-H // f) * f, -(-W // f) * f
-    dist = np.pad(dist, ((0, H - h), (0, W - w)), constant_values=10.0)
-    bad = np.pad(bad, ((0, H - h), (0, W - w)), constant_values=1.0)
-    c_d = dist.reshape(H // f, f, W // f, f).min(axis=(1, 3))
-    c_b = bad.reshape(H // f, f, W // f, f).mean(axis=(1, 3))
-    return PlanFields(
-        origin=np.asarray(r.origin, np.float32),
-        dist=dist.astype(np.float32),
-        hit=np.exp(-(dist**2) / (2 * params.sigma_fine**2)).astype(np.float32),
-        bad=bad.astype(np.float32),
-        c_hit=np.exp(-(c_d**2) / (2 * params.sigma_coarse**2)).astype(np.float32),
-        c_bad=c_b.astype(np.float32),
-        res=float(r.res),
-        c_res=float(r.res * f),
-    )
-
-
-def _bilinear(field, origin, res, xy, fill):
-    u = (xy[..., 0] - origin[0]) / res - 0.5
-    v = (xy[..., 1] - origin[1]) / res - 0.5
-    h, w = field.shape
-    u0, v0 = jnp.floor(u), jnp.floor(v)
-    fu, fv = u - u0, v - v0
-    u0, v0 = u0.astype(jnp.int32), v0.astype(jnp.int32)
-
-    def at(iv, iu):
-        ok = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
-        val = field.reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
-        return jnp.where(ok, val, fill)
-
-    return (
-        at(v0, u0) * (1 - fu) * (1 - fv)
-        + at(v0, u0 + 1) * fu * (1 - fv)
-        + at(v0 + 1, u0) * (1 - fu) * fv
-        + at(v0 + 1, u0 + 1) * fu * fv
-    )
-
-
 def _score(g, pts, pok, frees, fok, fields, lam):
     """Fine score of placement ``g (3,)``: mean hit of points minus ``lam`` mean bad."""
-    hit = _bilinear(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
-    bad = _bilinear(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
+    hit = sample_field(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
+    bad = sample_field(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
     mh = jnp.sum(jnp.where(pok, hit, 0.0)) / jnp.maximum(jnp.sum(pok), 1).astype(hit.dtype)
     mb = jnp.sum(jnp.where(fok, bad, 0.0)) / jnp.maximum(jnp.sum(fok), 1).astype(bad.dtype)
     return mh - lam * mb
@@ -309,53 +219,3 @@ def uncentre(g, c):
     tx = g[:, 0] - (cg * c[0] - sg * c[1])
     ty = g[:, 1] - (sg * c[0] + cg * c[1])
     return np.stack([tx, ty, g[:, 2]], 1)
-
-
-def _through(o, pts, ok, fields, margin, steps):
-    """Whether each ray ``o -> pts`` meets a plan wall more than ``margin`` m before its end
-    (sphere tracing on the distance field: a measured return from behind a solid wall)."""
-    d = pts - o
-    r = jnp.linalg.norm(d, axis=-1)
-    u = d / jnp.maximum(r, 1e-6)[..., None]
-
-    def body(_, carry):
-        t, hit = carry
-        x = o + t[..., None] * u
-        dd = _bilinear(fields.dist, fields.origin, fields.res, x, 10.0)
-        hit = hit | ((dd < 0.02) & (t < r - margin))
-        return t + jnp.maximum(dd, 0.04), hit
-
-    t0 = jnp.full(r.shape, 0.05, r.dtype)
-    _, hit = jax.lax.fori_loop(0, steps, body, (t0, jnp.zeros(r.shape, bool)))
-    return hit & ok
-
-
-@partial(jax.jit, static_argnames=("steps",))
-def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin=0.5, steps=24):
-    """Per-scan statistics of placements.
-
-    Args:
-        g: ``(G, 3)`` placements of frame ``F`` into B.
-        scan_pts: ``(S, B, 2)`` scan points in ``F``; scan_ok: ``(S, B)``.
-        sensor: ``(S, 2)`` sensor positions in ``F``.
-        fields: ``PlanFields``.
-        margin: a ray meeting a wall this far (m) before its end point passes through it.
-        steps: sphere-tracing iterations (static).
-
-    Returns:
-        ``(hit (G, S), through (G, S), pose_bad (G, S))``: mean wall proximity of each scan's
-        points, the share of its rays that pass through plan walls, and the obstacle value
-        (wall or outside the building) at the sensor position, under each placement.
-    """
-
-    def one(gi):
-        p = se2.apply(gi, scan_pts)
-        o = se2.apply(gi, sensor[:, None, :])  # (S, 1, 2)
-        h = _bilinear(fields.hit, fields.origin, fields.res, p, 0.0)
-        n = jnp.maximum(jnp.sum(scan_ok, -1), 1).astype(jnp.float32)
-        mh = jnp.sum(jnp.where(scan_ok, h, 0.0), -1) / n
-        th = jnp.sum(_through(o, p, scan_ok, fields, margin, steps), -1).astype(n.dtype) / n
-        pb = _bilinear(fields.bad, fields.origin, fields.res, o[:, 0], 1.0)
-        return mh, th, pb
-
-    return jax.lax.map(one, g)

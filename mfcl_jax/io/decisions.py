@@ -5,7 +5,9 @@ since ``mfcl localize`` reports them, ``pose`` (the robot's pose ``{x, y, yaw_de
 plan frame when COMMIT, else null), ``reason`` (why a DEFER / AMBIGUOUS, ``""`` when
 none) and ``alternatives`` (when AMBIGUOUS: the robot's pose ``{x, y, yaw_deg}`` in the plan
 frame under each explanation the layer could not tell apart, best first: the consensus winner
-``T*``, then the strongest competitor; null for other states). Files without the optional
+``T*``, then the strongest competitor; null for other states) and ``segment`` (the odometry
+segment of the window: 0, plus one after every odometry jump; ``k`` is the window's index over
+the whole recording, it does not start again in a new segment). Files without the optional
 keys still read; a line that has them is checked.
 """
 
@@ -23,7 +25,9 @@ __all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMM
 STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
 SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
 _KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
-_OPTIONAL = ("pose", "reason", "alternatives")
+_OPTIONAL = ("segment", "pose", "reason", "alternatives")
+# The order of the keys on a line: the window and its segment first.
+_ORDER = ("k", "segment", *_KEYS[1:], *_OPTIONAL[1:])
 
 
 def _check_pose(where: str, name: str, a) -> None:
@@ -67,6 +71,10 @@ def _check(where: str, d: dict) -> dict:
             if a is None:
                 raise DataError(f"{where}: alternatives[{i}] is null, expected {{x, y, yaw_deg}}")
             _check_pose(where, f"alternatives[{i}]", a)
+    if "segment" in d:
+        seg = d["segment"]
+        if not isinstance(seg, int) or isinstance(seg, bool) or seg < 0:
+            raise DataError(f"{where}: segment={seg!r}, expected an integer >= 0")
     if "reason" in d and not isinstance(d["reason"], str):
         raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]
@@ -78,14 +86,14 @@ def _check(where: str, d: dict) -> dict:
 def decision_line(d: dict, where: str = "<decision>") -> str:
     """One validated JSON line (no newline) of a decision dict, keys in the file's order."""
     d = _check(where, dict(d))
-    keys = _KEYS + tuple(k for k in _OPTIONAL if k in d)
+    keys = [k for k in _ORDER if k in d]
     return json.dumps({k: d[k] for k in keys}, allow_nan=False)
 
 
 def write_decisions(path, decisions) -> Path:
     """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and,
-    when present, ``pose``, ``reason`` and ``alternatives``) as JSON lines, validated first
-    and written atomically (all or nothing)."""
+    when present, ``segment``, ``pose``, ``reason`` and ``alternatives``) as JSON lines,
+    validated first and written atomically (all or nothing)."""
     path = Path(path)
     lines = [decision_line(d, f"{path}: decision #{i}") for i, d in enumerate(decisions)]
     return atomic_write_text(path, "\n".join(lines) + ("\n" if lines else ""))

@@ -4,8 +4,9 @@
 fed the same keyframe scans and odometry as our layer and read at the same window ends.
 """
 
-from mfcl_jax.peers.mcl import MCLParams, MCLTrace, commits, make_mcl, run_mcl, trace_count
+from mfcl_jax.peers.mcl import MCLTrace, commits, make_mcl, run_mcl, trace_count
 from mfcl_jax.peers.mcl_batch import MCLBatch, pad_batch, prepare_mcl_inputs
+from mfcl_jax.peers.mcl_params import MCLParams
 
 __all__ = [
     "MCLBatch",

@@ -58,17 +58,20 @@ class LocalizeParams:
         return replace(self, window=replace(self.window, d_s=float(d_s)))
 
 
-def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0)) -> dict:
+def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None) -> dict:
     """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
-    anchor (when COMMIT), the robot's pose and the reason (``status.record``)."""
+    anchor (when COMMIT), the robot's pose and the reason (``status.record``); ``k`` the
+    window's index over the whole recording, ``segment`` (when given) its odometry segment."""
     state = STATE_NAMES[int(dec.state)]
     kind = lattice.KIND_NAMES[int(dec.kind)]
     a = np.asarray(dec.anchor, np.float64)
     anchor = None
     if state == "COMMIT":
         anchor = {"x": float(a[0]), "y": float(a[1]), "yaw_deg": float(np.rad2deg(a[2]))}
-    d = {
-        "k": int(k),
+    d = {"k": int(k)}
+    if segment is not None:
+        d["segment"] = int(segment)
+    d |= {
         "t": float(t),
         "state": state,
         "anchor": anchor,
@@ -120,8 +123,10 @@ class WindowResult:
     points: np.ndarray | None = None
 
     def record(self, offset=(0.0, 0.0)) -> dict:
-        """The decisions-file line (``record_of``; ``offset``: plan = local + offset)."""
-        return record_of(self.decision, self.k, self.t, self.X, self.X_input, offset)
+        """The decisions-file line (``record_of``; ``offset``: plan = local + offset), with
+        the window's ``k`` over the recording and its odometry ``segment``."""
+        return record_of(self.decision, self.k, self.t, self.X, self.X_input, offset,
+                         self.segment)  # fmt: skip
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""

@@ -111,8 +111,9 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
                 offset = floorplans[i].offset
                 for k in range(len(w)):
                     d = jax.tree.map(lambda a, r=r, k=k: a[r, k, 0], dec)
+                    seg = int(w.segments[w.bounds[k, 0]])  # k + 1: over the whole recording
                     res.records.append(record_of(d, k + 1, float(w.t[k]), w.X[k], w.X_input[k],
-                                                 offset))  # fmt: skip
+                                                 offset, seg))  # fmt: skip
                     sub = int(batch.runs.submap[r, k])
                     thin = f" rethinned voxel={w.voxel[k]:.2f}" if W.rethinned(w)[k] else ""
                     res.details.append(f"pts={len(w.points[k])}{thin} cands={int(valid[sub])}")

@@ -250,7 +250,8 @@ def _places(d: dict) -> str:
 
 
 def status_line(d: dict, detail: str = "") -> str:
-    """One line for a person from a decisions-file record (``record``'s keys)."""
+    """One line for a person from a decisions-file record (``record``'s keys); a window
+    after an odometry jump shows its ``segment``."""
     head = f"k={d['k']:3d} t={d['t']:10.2f} {d['state']:9s}"
     if d["state"] == "COMMIT":
         p = d["pose"]
@@ -266,7 +267,10 @@ def status_line(d: dict, detail: str = "") -> str:
         what = f"{d['reason']} ({short})"
     else:
         what = "one candidate place; too few agreeing windows yet"
-    tail = f"B1={d['B1']} B2={d['B2']} margin={d['margin']}" + (f" {detail}" if detail else "")
+    tail = f"B1={d['B1']} B2={d['B2']} margin={d['margin']}"
+    if d.get("segment"):  # after an odometry jump (segment 0 is not shown)
+        tail += f" segment={d['segment']}"
+    tail += f" {detail}" if detail else ""
     return f"{head} {what}  [{tail}]"
 
 

@@ -27,6 +27,7 @@ __all__ = [
     "score_decisions",
     "score_batch",
     "summarize",
+    "segment_summaries",
     "format_table",
 ]
 
@@ -60,8 +61,14 @@ def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
 
 
 def decisions_frame(decisions) -> pd.DataFrame:
-    """A decisions JSON-lines log (``io.read_decisions``) as a table: ``k, t, state,
-    symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none)."""
+    """A decisions JSON-lines log (``io.read_decisions``) as a table in time order: ``k, t,
+    segment, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none).
+
+    Rows are ordered by ``t`` (lines with equal times keep the file's order), never by ``k``:
+    a file written before ``k`` counted over the whole recording starts ``k`` again at 1
+    after an odometry jump. ``segment`` is the file's; in a file without it (written before
+    ``mfcl localize`` reported segments) a new segment starts wherever ``k`` does not grow.
+    """
     rows = []
     for d in decisions:
         a = d["anchor"] or {}
@@ -69,6 +76,7 @@ def decisions_frame(decisions) -> pd.DataFrame:
             dict(
                 k=int(d["k"]),
                 t=d["t"],
+                segment=d.get("segment"),
                 state=d["state"],
                 symmetry=d["symmetry"],
                 B1=d["B1"],
@@ -79,8 +87,14 @@ def decisions_frame(decisions) -> pd.DataFrame:
                 yaw_deg=a.get("yaw_deg", math.nan),
             )
         )
-    cols = ["k", "t", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
-    return pd.DataFrame(rows, columns=cols)
+    cols = ["k", "t", "segment", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
+    df = pd.DataFrame(rows, columns=cols)
+    if df.empty:
+        return df.astype({"segment": np.int64})
+    df = df.sort_values("t", kind="stable").reset_index(drop=True)
+    if df["segment"].isna().any():  # k starts again after a jump in such files
+        df["segment"] = np.concatenate([[0], np.cumsum(np.diff(df["k"].to_numpy()) <= 0)])
+    return df.astype({"segment": np.int64})
 
 
 def score_rows(
@@ -162,7 +176,8 @@ def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> p
 
 
 def summarize(scored: pd.DataFrame) -> dict:
-    """First commit and end state of one scored run.
+    """First commit and end state of one scored run, in time order (``t``: the first
+    commit is the earliest, the final state the latest window's).
 
     Returns:
         ``windows, first_commit_k, first_commit_t, err_xy, err_yaw_deg, correct,
@@ -183,7 +198,7 @@ def summarize(scored: pd.DataFrame) -> dict:
     )
     if scored.empty:
         return out
-    s = scored.sort_values("k")
+    s = scored.sort_values("t", kind="stable") if "t" in scored else scored.sort_values("k")
     last = s.iloc[-1]
     out["final_state"] = last["state"]
     out["final_symmetry"] = last["symmetry"] if isinstance(last["symmetry"], str) else None
@@ -204,8 +219,21 @@ def summarize(scored: pd.DataFrame) -> dict:
     return out
 
 
-def format_table(df: pd.DataFrame, floatfmt: str = ".2f") -> str:
-    """A plain-text table (tabulate) of a small frame."""
+def segment_summaries(scored: pd.DataFrame) -> list[dict]:
+    """``summarize`` of each odometry segment of a scored run (column ``segment``), in
+    order, each with ``segment``, ``k_first, k_last`` and ``t_first, t_last``."""
+    out = []
+    for seg, g in scored.groupby("segment", sort=True):
+        g = g.sort_values("t", kind="stable")
+        row = dict(segment=int(seg), k_first=int(g["k"].iloc[0]), k_last=int(g["k"].iloc[-1]),
+                   t_first=float(g["t"].iloc[0]), t_last=float(g["t"].iloc[-1]))  # fmt: skip
+        out.append(row | summarize(g))
+    return out
+
+
+def format_table(df: pd.DataFrame, floatfmt: str = ".2f", missingval: str = "") -> str:
+    """A plain-text table (tabulate) of a small frame (``None`` cells as ``missingval``)."""
     from tabulate import tabulate
 
-    return tabulate(df, headers="keys", tablefmt="github", showindex=False, floatfmt=floatfmt)
+    return tabulate(df, headers="keys", tablefmt="github", showindex=False, floatfmt=floatfmt,
+                    missingval=missingval)  # fmt: skip

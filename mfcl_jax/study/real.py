@@ -4,7 +4,8 @@ and real logs, scored, tabulated and drawn.
 Cases (all with the same, untuned ``LocalizeParams``; d_s = 6 m):
 
 * IFC buildings (Office_A, Duplex, Level 1): simulated walks along room sequences
-  (waypoints through door midpoints, see ``route``); LiDAR sees the IFC walls only.
+  (``real_walks``; waypoints through door midpoints, see ``route``); LiDAR sees the IFC walls
+  only.
 * Intel lab, CARMEN corrected log: 80 m windows from ``sources.logs.log_recordings``: real
   scans (180 deg, 1 deg), the corrected poses as ground truth, odometry derived from them with
   seeded wheel-odometry-like drift (1 %, 0.5 deg/m); floor plan: an occupancy map built from
@@ -30,6 +31,7 @@ from mfcl_jax.robot.localizer import LocalizeParams, Localizer
 from mfcl_jax.score import score_decisions, summarize
 from mfcl_jax.sources.sequence import ScanSequence
 from mfcl_jax.sources.walks import route
+from mfcl_jax.study.real_walks import DUPLEX, OFFICE
 
 __all__ = ["run_all", "main"]
 
@@ -39,88 +41,6 @@ DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel l
 
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-# ----------------------------------------------------------------------------- cases
-OFFICE = dict(
-    building="Office_A",
-    file="ifc/Office_A_20110811.ifc",
-    storey="Level 1",
-    walks={
-        "corridor_121": (
-            None,
-            [(4.0, -13.35), (45.0, -13.35)],
-            "straight 41 m corridor: long aperture alias along its axis",
-        ),
-        "open_office_to_113": (
-            ["140 OPEN OFFICE", "121 CORRIDOR", "142 CORRIDOR", "141 CORRIDOR", "113 OPEN OFFICE"],
-            None,
-            "open office, two corridors, open office: distinctive",
-        ),
-        "noc_team_room": (
-            ["121 CORRIDOR", "153 VEST/ENTRY", "158 NOC", "155 TEAM RM"],
-            None,
-            "corridor -> vestibule -> NOC -> team room",
-        ),
-        "offices_141": (
-            [
-                "141 CORRIDOR",
-                "129 CHAPLAIN",
-                "141 CORRIDOR",
-                "130 SR HR SGT",
-                "141 CORRIDOR",
-                "131 MESSAGE CENTER",
-            ],
-            None,
-            "in and out of three near-identical small offices on corridor 141",
-        ),
-    },
-)
-DUPLEX = dict(
-    building="Duplex",
-    file="ifc/Duplex_A_20110907_Architecture.ifc",
-    storey="Level 1",
-    walks={
-        # The Living Room - Foyer "door" of each unit lies on an uncut wall in the IFC cut, so
-        # walks go through the kitchen.
-        "unit_A_tour": (
-            [
-                "A101 Foyer",
-                "A103 Kitchen",
-                "A102 Living Room",
-                "A103 Kitchen",
-                "A101 Foyer",
-                "A104 Bathroom 1",
-            ],
-            None,
-            "unit A only; unit B is its 180-degree rotation",
-        ),
-        "unit_B_tour": (
-            [
-                "B101 Foyer",
-                "B103 Kitchen",
-                "B102 Living Room",
-                "B103 Kitchen",
-                "B101 Foyer",
-                "B104 Bathroom 1",
-            ],
-            None,
-            "the same walk in unit B",
-        ),
-        "unit_A_stair": (
-            [
-                "A102 Living Room",
-                "A103 Kitchen",
-                "A101 Foyer",
-                "A105 Stair",
-                "A101 Foyer",
-                "A104 Bathroom 1",
-            ],
-            None,
-            "unit A: living room to stair and bathroom",
-        ),
-    },
-)
 
 
 @dataclass

@@ -15,23 +15,25 @@ from mfcl_jax.windows.arrays import (
     evidence_sample,
     pad_submaps,
 )
-from mfcl_jax.windows.odometry import Odometer, ScanMatchParams
+from mfcl_jax.windows.cutters import Cutter, cut_many
+from mfcl_jax.windows.icp import ScanMatchParams
+from mfcl_jax.windows.keyframes import (
+    keyframes,
+    odometry_segments,
+    segment_bounds,
+    travelled,
+    window_bounds,
+)
+from mfcl_jax.windows.odometry import Odometer
 from mfcl_jax.windows.padding import WindowBatch, concat, pack
 from mfcl_jax.windows.submaps import (
-    Cutter,
     WindowParams,
     Windows,
     build_submap,
     cut,
-    cut_many,
     keyframe_odometry,
-    keyframes,
-    odometry_segments,
     rethinned,
-    segment_bounds,
-    travelled,
     window,
-    window_bounds,
 )
 
 __all__ = [

@@ -2,15 +2,13 @@
 
 Every consumer (the study, the benchmark, ``mfcl localize``) goes through here:
 
-1. keyframes (``keyframes``): a scan is kept once the odometry moved ``keyframe_spacing`` or
-   turned ``keyframe_turn_deg`` since the last kept one, as an LIO keeps keyframes. The
-   threshold (0.20 m) sits below the simulator's 0.25 m scan spacing, so a simulated sequence
-   keeps every scan despite its drift;
-2. sliding windows over odometric travelled distance (``window_bounds``): window ``k`` (1-based)
-   starts at the first keyframe whose travelled distance is at least ``step (k - 1)`` and ends
-   at the first keyframe at which the distance travelled inside the window reaches ``d_s``;
-   the robot decides this from its own odometry, so drift shifts the windows as on a robot;
-3. LiDAR odometry (``scanmatch``): the keyframes' poses refined by ICP against a local map of
+1. keyframes (``keyframes.keyframes``): a scan is kept once the odometry moved
+   ``keyframe_spacing`` or turned ``keyframe_turn_deg`` since the last kept one, as an LIO
+   keeps keyframes. The threshold (0.20 m) sits below the simulator's 0.25 m scan spacing, so
+   a simulated sequence keeps every scan despite its drift;
+2. sliding windows over odometric travelled distance (``keyframes.window_bounds``): the robot
+   decides them from its own odometry, so drift shifts the windows as on a robot;
+3. LiDAR odometry (``odometry``): the keyframes' poses refined by ICP against a local map of
    the previous keyframes (``scan_match.enabled``), so that wheel odometry's drift does not bend
    the submaps; the windows' bounds stay those of the input odometry's travel;
 4. the submap (``build_submap``) in the frame ``S_i`` of the window's last scan
@@ -19,8 +17,8 @@ Every consumer (the study, the benchmark, ``mfcl localize``) goes through here:
    point keeping its ray origin so the ray between them is known free space. A submap over
    the point capacity is re-thinned with a coarser voxel (x1.5 until it fits, at most
    ``max_rethin`` times); nothing is truncated;
-5. ``pack`` (``packing``, re-exported here): windows of many runs padded on the host into one
-   ``SubmapBatch`` (points in a power-of-two capacity bucket) and one ``RunBatch``.
+5. ``pack`` (``padding``): windows of many runs padded on the host into one ``SubmapBatch``
+   (points in a power-of-two capacity bucket) and one ``RunBatch``.
 """
 
 from __future__ import annotations
@@ -30,20 +28,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
-from mfcl_jax.windows.odometry import Odometer, ScanMatchParams, extend_many
+from mfcl_jax.windows.keyframes import keyframes, odometry_segments, segment_bounds
+from mfcl_jax.windows.odometry import Odometer, ScanMatchParams
 
 __all__ = [
     "WindowParams",
     "Windows",
-    "keyframes",
-    "travelled",
-    "window_bounds",
     "build_submap",
     "cut",
-    "cut_many",
-    "Cutter",
-    "odometry_segments",
-    "segment_bounds",
     "rethinned",
     "window",
 ]
@@ -90,82 +82,6 @@ class WindowParams:
             raise ValueError(f"WindowParams: crop_radius must be > 0, got {self.crop_radius!r}")
         if self.capacity < 64:
             raise ValueError(f"WindowParams: capacity must be >= 64, got {self.capacity!r}")
-
-
-def keyframes(odometry, spacing: float = 0.20, turn_deg: float = 20.0) -> np.ndarray:
-    """Indices ``(M,)`` of the scans kept as keyframes (the first scan is always kept)."""
-    x = np.asarray(odometry, np.float64)
-    keep = [0]
-    turn = np.deg2rad(turn_deg)
-    for i in range(1, len(x)):
-        a = x[keep[-1]]
-        dyaw = abs((x[i, 2] - a[2] + np.pi) % (2 * np.pi) - np.pi)
-        if np.hypot(*(x[i, :2] - a[:2])) >= spacing or dyaw >= turn:
-            keep.append(i)
-    return np.asarray(keep, int)
-
-
-def travelled(poses) -> np.ndarray:
-    """Cumulative planar distance along ``poses (T, 3)``; ``(T,)`` starting at 0."""
-    xy = np.asarray(poses, np.float64)[:, :2]
-    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-
-
-# An odometry restart (the frame re-zeroed mid-run) shows as a step between consecutive
-# keyframes that no robot makes: longer than JUMP_M + JUMP_SPEED * dt, or a turn larger than
-# JUMP_DEG + JUMP_RATE * dt. The real logs' largest keyframe steps (orebro: 3.2 m in 1 s;
-# seattle: 81 deg) and the simulator's pivots (126 deg in 0.5 s) stay inside. Poses before and
-# after a jump are in incommensurable frames, so windows never straddle one and the decision
-# layer starts over after it. A restart close to where the odometry frame began (within
-# about 2.75 m at 2 Hz keyframes) is not a jump by this rule and goes unnoticed.
-JUMP_M, JUMP_SPEED = 1.0, 3.5  # m, m/s
-JUMP_DEG, JUMP_RATE = 150.0, 60.0  # deg, deg/s
-
-
-def odometry_segments(poses, times) -> np.ndarray:
-    """``(T,)`` segment id of each pose: 0, plus one after every odometry jump."""
-    x = np.asarray(poses, np.float64).reshape(-1, 3)
-    t = np.asarray(times, np.float64).reshape(-1)
-    if len(x) < 2:
-        return np.zeros(len(x), np.int64)
-    dt = np.abs(np.diff(t))
-    dt = np.where(np.isfinite(dt), dt, 0.0)
-    step = np.hypot(*np.diff(x[:, :2], axis=0).T)
-    turn = np.rad2deg(np.abs((np.diff(x[:, 2]) + np.pi) % (2 * np.pi) - np.pi))
-    jump = (step > JUMP_M + JUMP_SPEED * dt) | (turn > JUMP_DEG + JUMP_RATE * dt)
-    return np.concatenate([[0], np.cumsum(jump)]).astype(np.int64)
-
-
-def segment_bounds(poses, segments, d_s: float, step: float = 2.0) -> np.ndarray:
-    """``window_bounds`` of each odometry segment (``segments (T,)``: ``Windows.segments``),
-    in order: no window straddles a jump."""
-    seg = np.asarray(segments).reshape(-1)
-    out = []
-    for s_id in np.unique(seg):
-        idx = np.flatnonzero(seg == s_id)
-        b = window_bounds(travelled(np.asarray(poses)[idx]), d_s, step)
-        out.append(b + idx[0])
-    return np.concatenate(out).reshape(-1, 2) if out else np.zeros((0, 2), np.int64)
-
-
-def window_bounds(s, d_s: float, step: float = 2.0) -> np.ndarray:
-    """``(K, 2)`` inclusive ``(first, last)`` indices of the windows over travelled ``s (T,)``."""
-    s = np.asarray(s, dtype=np.float64)
-    if not d_s > 0:
-        raise ValueError(f"d_s must be > 0, got d_s={d_s!r}")
-    eps = 1e-6
-    out = []
-    k = 0
-    while True:
-        j0 = int(np.searchsorted(s, step * k - eps, side="left"))
-        if j0 >= len(s):
-            break
-        j1 = int(np.searchsorted(s, s[j0] + d_s - eps, side="left"))
-        if j1 >= len(s):
-            break
-        out.append((j0, j1))
-        k += 1
-    return np.asarray(out, dtype=np.int64).reshape(-1, 2)
 
 
 def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -309,35 +225,6 @@ def cut(
     return _windows(seq, p, kf, odo, seg, start, upto)
 
 
-def cut_many(items) -> list[Windows]:
-    """``cut(seq, params)`` of every ``(seq, params)`` pair, the LiDAR odometry of each
-    distinct sequence refined once (shared by its ``d_s`` values) and all of them in one
-    batched kernel (``scanmatch.extend_many``). Equal to cutting one by one."""
-    items = list(items)
-    keys = {}
-    for seq, p in items:
-        k = (id(seq), p.keyframe_spacing, p.keyframe_turn_deg, p.scan_match)
-        keys.setdefault(k, (seq, p))
-    kfs, odos = {}, {}
-    groups: dict = {}
-    for k, (seq, p) in keys.items():
-        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        raw = np.asarray(seq.odometry, np.float64)[kf]
-        kfs[k] = (kf, raw, odometry_segments(raw, np.asarray(seq.times)[kf]))
-        groups.setdefault(p.scan_match, []).append(k)
-    for sm, ks in groups.items():
-        meters = [Odometer(sm) for _ in ks]
-        scans = [[keys[k][0].scans[i] for i in kfs[k][0]] for k in ks]
-        poses = extend_many(meters, scans, [kfs[k][1] for k in ks], [kfs[k][2] for k in ks])
-        for k, m, po in zip(ks, meters, poses, strict=True):
-            odos[k] = (po, m.segments)
-    out = []
-    for seq, p in items:
-        k = (id(seq), p.keyframe_spacing, p.keyframe_turn_deg, p.scan_match)
-        out.append(_windows(seq, p, kfs[k][0], *odos[k]))
-    return out
-
-
 def _windows(seq, p: WindowParams, kf, odo, seg, start: int = 0, upto: int | None = None):
     raw = np.asarray(seq.odometry, np.float64)[kf]
     bounds = segment_bounds(raw, seg, p.d_s, p.step)[start:upto]
@@ -361,53 +248,6 @@ def _windows(seq, p: WindowParams, kf, odo, seg, start: int = 0, upto: int | Non
         raw[last].reshape(-1, 3),
         seg,
     )
-
-
-class Cutter:
-    """The windows of a growing recording, each as soon as it is complete.
-
-    ``feed(seq)`` takes the recording so far (each call's ``seq`` extends the previous one)
-    and returns the windows completed since the last call, one ``Windows`` each. The LiDAR
-    odometry is extended ``scan_match.chunk`` keyframes at a time, so a robot sees its first
-    window after the first few keyframes, not after the whole recording; windows are causal,
-    so the result equals ``cut`` of the final sequence.
-
-    Attributes:
-        odometer: the ``Odometer`` (its ``poses`` and ``segments`` cover the keyframes so far).
-        n_windows: windows emitted so far.
-    """
-
-    def __init__(self, params: WindowParams | None = None):
-        self.params = params or WindowParams()
-        self.odometer = Odometer(self.params.scan_match)
-        self.n_windows = 0
-
-    def estimate(self, seq) -> int:
-        """Windows of ``seq`` by the input odometry alone (the LiDAR odometry's jump test
-        may split a segment and change the count): a progress bar's total."""
-        p = self.params
-        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        raw = np.asarray(seq.odometry, np.float64)[kf]
-        seg = odometry_segments(raw, np.asarray(seq.times)[kf])
-        return len(segment_bounds(raw, seg, p.d_s, p.step))
-
-    def feed(self, seq):
-        """Yields the windows of ``seq`` completed since the last call (one ``Windows`` each,
-        with the keyframes, odometry and segments so far)."""
-        p = self.params
-        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        raw = np.asarray(seq.odometry, np.float64)[kf]
-        seg_in = odometry_segments(raw, np.asarray(seq.times)[kf])
-        odo = self.odometer
-        step = p.scan_match.chunk
-        while len(odo) < len(kf):
-            a = len(odo)
-            b = min(a + step, len(kf))
-            odo.extend([seq.scans[i] for i in kf[a:b]], raw[a:b], seg_in[a:b])
-            w = _windows(seq, p, kf[:b], odo.poses[:b], odo.segments[:b], start=self.n_windows)
-            for k in range(len(w)):
-                yield window(w, k)
-            self.n_windows += len(w)
 
 
 def window(w: Windows, k: int) -> Windows:

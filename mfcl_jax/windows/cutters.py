@@ -1,0 +1,89 @@
+"""Cutting beyond one sequence at a time: many sequences with one batched LiDAR odometry
+(``cut_many``), and a recording that grows, window by window as each completes (``Cutter``).
+Both give exactly ``submaps.cut``'s windows."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mfcl_jax.windows.keyframes import keyframes, odometry_segments, segment_bounds
+from mfcl_jax.windows.odometry import Odometer, extend_many
+from mfcl_jax.windows.submaps import WindowParams, Windows, _windows, window
+
+__all__ = ["cut_many", "Cutter"]
+
+
+def cut_many(items) -> list[Windows]:
+    """``cut(seq, params)`` of every ``(seq, params)`` pair, the LiDAR odometry of each
+    distinct sequence refined once (shared by its ``d_s`` values) and all of them in one
+    batched kernel (``scanmatch.extend_many``). Equal to cutting one by one."""
+    items = list(items)
+    keys = {}
+    for seq, p in items:
+        k = (id(seq), p.keyframe_spacing, p.keyframe_turn_deg, p.scan_match)
+        keys.setdefault(k, (seq, p))
+    kfs, odos = {}, {}
+    groups: dict = {}
+    for k, (seq, p) in keys.items():
+        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
+        raw = np.asarray(seq.odometry, np.float64)[kf]
+        kfs[k] = (kf, raw, odometry_segments(raw, np.asarray(seq.times)[kf]))
+        groups.setdefault(p.scan_match, []).append(k)
+    for sm, ks in groups.items():
+        meters = [Odometer(sm) for _ in ks]
+        scans = [[keys[k][0].scans[i] for i in kfs[k][0]] for k in ks]
+        poses = extend_many(meters, scans, [kfs[k][1] for k in ks], [kfs[k][2] for k in ks])
+        for k, m, po in zip(ks, meters, poses, strict=True):
+            odos[k] = (po, m.segments)
+    out = []
+    for seq, p in items:
+        k = (id(seq), p.keyframe_spacing, p.keyframe_turn_deg, p.scan_match)
+        out.append(_windows(seq, p, kfs[k][0], *odos[k]))
+    return out
+
+
+class Cutter:
+    """The windows of a growing recording, each as soon as it is complete.
+
+    ``feed(seq)`` takes the recording so far (each call's ``seq`` extends the previous one)
+    and returns the windows completed since the last call, one ``Windows`` each. The LiDAR
+    odometry is extended ``scan_match.chunk`` keyframes at a time, so a robot sees its first
+    window after the first few keyframes, not after the whole recording; windows are causal,
+    so the result equals ``cut`` of the final sequence.
+
+    Attributes:
+        odometer: the ``Odometer`` (its ``poses`` and ``segments`` cover the keyframes so far).
+        n_windows: windows emitted so far.
+    """
+
+    def __init__(self, params: WindowParams | None = None):
+        self.params = params or WindowParams()
+        self.odometer = Odometer(self.params.scan_match)
+        self.n_windows = 0
+
+    def estimate(self, seq) -> int:
+        """Windows of ``seq`` by the input odometry alone (the LiDAR odometry's jump test
+        may split a segment and change the count): a progress bar's total."""
+        p = self.params
+        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
+        raw = np.asarray(seq.odometry, np.float64)[kf]
+        seg = odometry_segments(raw, np.asarray(seq.times)[kf])
+        return len(segment_bounds(raw, seg, p.d_s, p.step))
+
+    def feed(self, seq):
+        """Yields the windows of ``seq`` completed since the last call (one ``Windows`` each,
+        with the keyframes, odometry and segments so far)."""
+        p = self.params
+        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
+        raw = np.asarray(seq.odometry, np.float64)[kf]
+        seg_in = odometry_segments(raw, np.asarray(seq.times)[kf])
+        odo = self.odometer
+        step = p.scan_match.chunk
+        while len(odo) < len(kf):
+            a = len(odo)
+            b = min(a + step, len(kf))
+            odo.extend([seq.scans[i] for i in kf[a:b]], raw[a:b], seg_in[a:b])
+            w = _windows(seq, p, kf[:b], odo.poses[:b], odo.segments[:b], start=self.n_windows)
+            for k in range(len(w)):
+                yield window(w, k)
+            self.n_windows += len(w)

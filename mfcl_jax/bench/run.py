@@ -43,11 +43,11 @@ DEFAULT_SET = 1
 
 def _label_version() -> str:
     """Cached labels are reused only while the labelling code is unchanged."""
-    from mfcl_jax.frontend import path_search
+    from mfcl_jax.frontend import path_fields, path_search, placements
     from mfcl_jax.score import identifiability
 
     h = hashlib.sha1()
-    for mod in (identifiability, path_search):
+    for mod in (identifiability, path_search, path_fields, placements):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 

@@ -61,14 +61,17 @@ def ifc_floorplan(model: str, cache: str | None):
     """The IFC model's floor plan (cached as GeoJSON in ``cache``)."""
     import hashlib
 
-    from mfcl_jax.floorplan import ifc
+    from mfcl_jax.floorplan import ifc, ifc_rooms, ifc_section
     from mfcl_jax.floorplan.geojson import load_geojson, save_geojson
     from mfcl_jax.floorplan.load import load_floorplan
 
     file, storey = IFC_MODELS[model]
     if cache:
         # keyed by the loader's code: a plan cut by an older loader is not reused
-        version = hashlib.sha1(Path(ifc.__file__).read_bytes()).hexdigest()[:10]
+        h = hashlib.sha1()
+        for mod in (ifc, ifc_section, ifc_rooms):
+            h.update(Path(mod.__file__).read_bytes())
+        version = h.hexdigest()[:10]
         path = Path(cache).expanduser() / "floorplans" / f"{model}-{version}.geojson"
         if path.is_file():
             return load_geojson(path)

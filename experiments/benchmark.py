@@ -64,10 +64,10 @@ def main(cfg: DictConfig) -> None:
     print(f"wrote {len(tabs)} tables to {bench.out}/")
     # the committed outputs (results/benchmark, results/benchmark_large) feed README tables
     if Path(bench.out).resolve().parent == Path("results").resolve():
-        from mfcl_jax.study.readme import update_readme
+        from mfcl_jax.study.readme import update_docs
 
-        names = update_readme("README.md", "results")
-        print(f"README.md: refreshed {len(names)} generated tables")
+        names = update_docs("results")
+        print(f"README and docs: refreshed {len(names)} generated tables")
 
 
 if __name__ == "__main__":

@@ -8,11 +8,11 @@ refreshes the README's generated recall block."""
 import sys
 
 from mfcl_jax.bench.recall import main
-from mfcl_jax.study.readme import update_readme
+from mfcl_jax.study.readme import update_docs
 
 if __name__ == "__main__":
     out = sys.argv[1] if len(sys.argv) > 1 else "results"
     main(out, sys.argv[2:] or None)
     if out == "results" and not sys.argv[2:]:
-        names = update_readme("README.md", "results")
-        print(f"README.md: refreshed {len(names)} generated tables")
+        names = update_docs("results")
+        print(f"README and docs: refreshed {len(names)} generated tables")

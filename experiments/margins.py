@@ -21,10 +21,10 @@ def main(argv=None) -> int:
         print(f"{d}/margins.md")
         print(tab.to_markdown(index=False, floatfmt=".3g"))
     if not argv:
-        from mfcl_jax.study.readme import update_readme
+        from mfcl_jax.study.readme import update_docs
 
-        names = update_readme("README.md", "results")
-        print(f"README.md: refreshed {len(names)} generated tables")
+        names = update_docs("results")
+        print(f"README and docs: refreshed {len(names)} generated tables")
     return 0
 
 

@@ -3,12 +3,12 @@ A full run into the default ``results/real`` refreshes the README's generated re
 
 import sys
 
-from mfcl_jax.study.readme import update_readme
+from mfcl_jax.study.readme import update_docs
 from mfcl_jax.study.real import main
 
 if __name__ == "__main__":
     rc = main()
     if not rc and not any(a.startswith("--out") or a == "--quick" for a in sys.argv[1:]):
-        names = update_readme("README.md", "results")
-        print(f"README.md: refreshed {len(names)} generated tables")
+        names = update_docs("results")
+        print(f"README and docs: refreshed {len(names)} generated tables")
     sys.exit(rc)

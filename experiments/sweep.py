@@ -50,10 +50,10 @@ def main(cfg: DictConfig) -> None:
     tabs = run_study(study)
     print(f"wrote {len(tabs)} tables to {study.out}/")
     if Path(study.out).resolve() == Path("results").resolve():
-        from mfcl_jax.study.readme import update_readme
+        from mfcl_jax.study.readme import update_docs
 
-        names = update_readme("README.md", study.out)
-        print(f"README.md: refreshed {len(names)} generated tables")
+        names = update_docs(study.out)
+        print(f"README and docs: refreshed {len(names)} generated tables")
 
 
 if __name__ == "__main__":

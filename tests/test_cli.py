@@ -61,8 +61,10 @@ def test_round_trip(sim, capsys):
     ot, odo = read_tum(ds / "odometry.tum")
     status = [line for line in text.splitlines() if line.startswith("k=")]
     for i, (d, line, st) in enumerate(zip(decs, lines, status, strict=True), 1):
-        assert list(json.loads(line)) == keys + ["pose", "reason", "alternatives"]
-        assert d["k"] == i and isinstance(d["t"], float)
+        # k over the whole recording and its odometry segment first (no jump here: 0).
+        assert list(json.loads(line)) == ["k", "segment", *keys[1:], "pose", "reason",
+                                          "alternatives"]  # fmt: skip
+        assert d["k"] == i and d["segment"] == 0 and isinstance(d["t"], float)
         assert (d["anchor"] is None) == (d["state"] != "COMMIT") == (d["pose"] is None)
         assert (d["alternatives"] is None) == (d["state"] != "AMBIGUOUS")
         if d["state"] == "COMMIT":  # the robot's pose now: T* composed with the odometry

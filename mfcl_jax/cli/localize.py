@@ -128,9 +128,9 @@ def add_localize_commands(subparsers) -> None:
     ev = subparsers.add_parser(
         "evaluate",
         help="score a decisions log against groundtruth.tum",
-        description="Score a decisions log against the dataset's groundtruth.tum: the first "
-        "commit, every commit, the final state, overall and per odometry segment, in time "
-        "order.",
+        description="Score a decisions log against the dataset's groundtruth.tum: the first\n"
+        "commit, every commit and the final state, over the run and per odometry segment,\n"
+        "in time order.",
         epilog=EVALUATE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -278,7 +278,8 @@ def _windows(scored):
     df["correct"] = [("yes" if v else "NO") if m else None
                      for v, m in zip(scored["correct"], commit, strict=True)]  # fmt: skip
     df["symmetry"] = [v if isinstance(v, str) else None for v in scored["symmetry"]]
-    return df
+    df = df.astype(object)
+    return df.where(df.notna(), None)
 
 
 def _check_plot(args) -> Path:

@@ -300,6 +300,8 @@ def _decide(args, loaded: dict, params, progress, bad: dict):
     from mfcl_jax.robot.many import localize_batch
 
     todo = sorted(loaded)
+    if not todo:
+        return
     done = set()
     try:
         fps, seqs = [loaded[i][0] for i in todo], [loaded[i][1] for i in todo]

@@ -47,7 +47,8 @@ def stop_status(exc: BaseException) -> int:
 class StopSignals:
     """While entered: SIGINT and SIGTERM raise ``Stopped`` in the main thread (once; later
     signals are remembered in ``received`` only). Outside the main thread (where Python cannot
-    set handlers) it does nothing; the previous handlers come back on exit."""
+    set handlers) it does nothing, and a signal the process was started ignoring (a
+    background job's SIGINT) stays ignored; the previous handlers come back on exit."""
 
     def __init__(self):
         self.received: int | None = None
@@ -57,7 +58,8 @@ class StopSignals:
     def __enter__(self) -> StopSignals:
         if threading.current_thread() is threading.main_thread():
             for s in SIGNALS:
-                self._old[s] = signal.signal(s, self._handle)
+                if signal.getsignal(s) is not signal.SIG_IGN:  # left ignored, as Python does
+                    self._old[s] = signal.signal(s, self._handle)
         self._armed = True
         return self
 

@@ -100,7 +100,7 @@ class _Recorder:
     seen: list = []
 
     def __init__(self, fp, params=None):
-        pass
+        self.params = params
 
     def estimate(self, seq):
         _Recorder.seen.append(seq)

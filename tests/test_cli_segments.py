@@ -19,7 +19,7 @@ import pytest
 
 from mfcl_jax import se2
 from mfcl_jax.cli import main
-from mfcl_jax.cli.localize import EXIT_FALSE_COMMIT
+from mfcl_jax.cli.evaluate import EXIT_FALSE_COMMIT
 from mfcl_jax.io import DataError, read_decisions, read_tum, write_decisions, write_tum
 
 WAYPOINTS = np.array([[1.0, 4.2], [3.0, 1.8], [27.0, 1.8]])

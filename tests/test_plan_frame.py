@@ -110,6 +110,7 @@ class _StubLocalizer:
 
     def __init__(self, fp, params=None):
         self.fp = fp
+        self.params = params
 
     def estimate(self, seq):
         return 2

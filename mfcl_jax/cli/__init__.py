@@ -9,8 +9,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+from mfcl_jax.cli.evaluate import add_evaluate_command
 from mfcl_jax.cli.floorplan import add_floorplan_commands
-from mfcl_jax.cli.localize import add_localize_commands
+from mfcl_jax.cli.localize import add_localize_command
+from mfcl_jax.cli.simulate import add_simulate_command
 
 __all__ = ["main", "build_parser"]
 
@@ -21,7 +23,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     add_floorplan_commands(sub)
-    add_localize_commands(sub)
+    add_localize_command(sub)
+    add_evaluate_command(sub)
+    add_simulate_command(sub)
     return parser
 
 

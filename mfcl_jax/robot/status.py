@@ -116,7 +116,8 @@ TERM_TEXT = {
     "B1": "support of the best placement: how many windows that share no scan have their "
     "best registration agree with it (independent evidence for it).",
     "B2": "support of the runner-up, a different placement, counted the same way (the "
-    "evidence against); a placement that the scans already contradict is not counted.",
+    "evidence against); at a window that could commit, the layer re-scores the scans under "
+    "every competitor and a placement they contradict is not counted.",
     "margin": "B1 - B2. A COMMIT needs B1 >= b_min (3) and margin >= delta_min (2); then "
     "every competing placement (symmetric copies, other groups, each window's runner-up) must "
     "be contradicted by the scans of some window and favoured by none.",
@@ -178,8 +179,10 @@ def markdown() -> str:
     out += [f"- **{n}**: {t}" for n, t in TERM_TEXT.items()]
     out += [
         "",
-        "The decisions file (`--out`, JSON lines) holds the same per line: `k, t, state, "
-        "anchor, symmetry, tau, B1, B2, margin` as before, plus `pose` (`{x, y, yaw_deg}` "
+        "The decisions file (`--out`, JSON lines) holds the same per line: `k` (the window, "
+        "counted over the whole recording), `segment` (the odometry segment: 0, plus one "
+        "after every odometry jump, where the layer starts over), `t, state, "
+        "anchor, symmetry, tau, B1, B2, margin`, plus `pose` (`{x, y, yaw_deg}` "
         'of the robot in the plan frame when COMMIT, else `null`), `reason` (`""` when '
         "none) and `alternatives` (when AMBIGUOUS: a list of the robot's poses `{x, y, "
         "yaw_deg}` in the plan frame, one per explanation the layer could not tell apart, "

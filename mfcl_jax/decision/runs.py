@@ -190,6 +190,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     done = 0
     p = params.as_arrays()
     runs_per_call = max(1, min(runs_per_call, R))
+    # one scan length for the batch too: a compilation costs more than padded windows
+    kw = _bucket(int(inputs.n_windows.max(initial=1)), 16, 16)
     n_b = min(buildings_per_call, len(used))
     for idx in chunks(rb, runs_per_call, n_b, keys=k_b * 65536 + t_b):
         kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
@@ -200,7 +202,6 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         fields = None if all_fields is None else jax.tree.map(lambda a, r=rows: a[r], all_fields)
         bidx = np.asarray([local_b.index(b) for b in rb[idx]], np.int32)
         n = len(idx)
-        kw = _bucket(int(inputs.n_windows[idx].max()), 16, 16)
         ev = jax.tree.map(
             lambda a, i=idx, w=kw: _fit_windows(_pad_rows(np.asarray(a)[i], runs_per_call), w),
             inputs.evidence,

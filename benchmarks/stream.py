@@ -7,7 +7,7 @@ that the history keeps growing with new anchors. The layer runs with the robot's
 leave the history and every update does the same work. The first update compiles (reported
 apart, ``compile``); the updates that ran the rival search (the layer about to commit) or the
 certification are listed apart; every other update is timed as a run (wall and process CPU).
-Medians per history bin. Writes ``results/bench_stream.csv`` and ``results/bench_stream.png``.
+Medians per history bin. Writes ``results/bench_stream.csv``, ``.md`` and ``.png``.
 Usage: ``python benchmarks/stream.py [--windows 512]``.
 """
 
@@ -107,7 +107,13 @@ def main(argv=None) -> int:
     print(f"certified or searched updates: {len(extra)}, median "
           f"{extra['wall_ms'].median():.1f} ms")  # fmt: skip
     print(run.round(2).to_string())
-    print(f"load1 {os.getloadavg()[0]:.2f}")
+    load = os.getloadavg()[0]
+    print(f"load1 {load:.2f}")
+    table = run.round(2).reset_index()
+    table.loc[len(table)] = ["compile (first update)", df["wall_ms"].iloc[0], None, 1]
+    table.loc[len(table)] = ["certified or searched", extra["wall_ms"].median(), None, len(extra)]
+    note = f"\n\nMedians in ms; load average {load:.2f} on {os.cpu_count()} cores at the end.\n"
+    out.with_suffix(".md").write_text(table.to_markdown(index=False, floatfmt=".1f") + note)
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(plain["window"], plain["wall_ms"], ".", ms=3, label="update (wall)")
     ax.plot(extra["window"], extra["wall_ms"], "x", ms=4, label="with certification/search")

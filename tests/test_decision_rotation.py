@@ -144,8 +144,8 @@ def test_inside_one_unit_is_ambiguous_rotation_until_the_scans_tell_the_units_ap
     for r, anchor in ((0, A), (1, np.asarray(se2.compose(G, A)))):
         d = ours(jax.tree.map(lambda x, r=r: x[r : r + 1], out))
         rot = (d.state == 1) & (d.kind == ROTATION)
-        # the probe names the twin before the scans tell the units apart (since the blocks of
-        # the certification, stop 22, the view through a door rules it out within a window
+        # the probe names the twin before the scans tell the units apart (with the certification's
+        # blocks, the view through a door rules it out within a window
         # or two when the champions are true)
         assert rot.sum() >= (1 if r == 0 else 3), (d.state.tolist(), d.kind.tolist())
         assert (d.kind != TRANSLATION).all()

@@ -14,7 +14,7 @@ deterministically from the family name and a seed. The families, each a regime o
 
 Faults turn a scene into a new one where reality and plan disagree (``with_clutter``,
 ``with_as_built``, ``with_scale_error``); ``write_family_geojson`` writes it
-(``evaluate.plots_scene.plot_family`` draws it).
+(``report.plots_scene.plot_family`` draws it).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A family scene's floor plan as GeoJSON (its picture: ``evaluate.plots_scene.plot_family``)."""
+"""A family scene's floor plan as GeoJSON (its picture: ``report.plots_scene.plot_family``)."""
 
 from __future__ import annotations
 

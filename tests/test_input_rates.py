@@ -343,3 +343,23 @@ def test_bag_millimetre_scans_refused(tmp_path):
         read_bag(path, scan_topic="/points")
     assert "r.bag /points scan at t=1000.003700000" in str(e.value)
     assert "millimetres" in str(e.value) and "expects scans in metres" in str(e.value)
+
+
+def test_a_dataset_written_with_100hz_odometry_loads_like_one_pose_per_scan(tmp_path):
+    """``write_dataset(odom_times=...)`` (``mfcl simulate --odom-rate``) writes the odometry
+    at its own rate and stamps; the loader interpolates it back at the scans' stamps."""
+    times = _scan_times()
+    ref = _dataset(tmp_path)
+    t100 = T0 + 0.01 * np.arange(196)  # 100 Hz, from before the first scan to past the last
+    fast = write_dataset(tmp_path / "fast", _plan(), times, _scans(len(times)), _truth(t100),
+                         odom_times=t100)  # fmt: skip
+    lines = (fast / "odometry.tum").read_text().splitlines()
+    assert len([ln for ln in lines if not ln.startswith("#")]) == 196
+    a = from_dataset(_quiet(load_dataset, ref))
+    b = from_dataset(_quiet(load_dataset, fast))
+    np.testing.assert_allclose(b.odometry[:, :2], a.odometry[:, :2], atol=1e-6)
+    assert _yaw_err(b.odometry[:, 2], a.odometry[:, 2]) < 1e-6
+    with pytest.raises(DataError, match="196 odometry times and 20 odometry poses"):
+        write_dataset(tmp_path / "bad", _plan(), times, _scans(len(times)), _truth(times),
+                      odom_times=t100)  # fmt: skip
+    assert not (tmp_path / "bad").exists()

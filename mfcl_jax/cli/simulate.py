@@ -20,6 +20,9 @@ def add_simulate_command(subparsers) -> None:
     si.add_argument("--out", type=Path, required=True, help="dataset folder to create")
     si.add_argument("--seed", type=int, default=0, help="noise and drift seed (0)")
     si.add_argument("--storey", help="IFC storey name or elevation")
+    si.add_argument("--odom-rate", type=float, metavar="HZ",
+                    help="write odometry.tum at this rate with its own stamps, as wheel "
+                    "odometry or an LIO publishes it (default: one pose per scan)")  # fmt: skip
     si.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     add_progress_flag(si)
     si.set_defaults(func=cmd_simulate)
@@ -31,6 +34,8 @@ def cmd_simulate(args) -> int:
     from mfcl_jax.robot.progress import COMPILING, Progress
 
     progress = Progress(True if args.progress else None)
+    if args.odom_rate is not None and not args.odom_rate > 0:
+        raise DataError(f"--odom-rate: must be a positive rate in Hz, got {args.odom_rate}")
     if args.out.exists() and not args.overwrite:
         raise DataError(f"{args.out}: already exists (pass --overwrite to replace it)")
     inputs = [args.trajectory, *floorplan_files(args.floorplan)]
@@ -46,10 +51,13 @@ def cmd_simulate(args) -> int:
         fp = load_floorplan(args.floorplan, storey=args.storey)
     with progress.stage(f"simulating the walk and writing {args.out} (ray caster: {COMPILING})"):
         out = simulate_dataset(
-            fp, wp, args.out, seed=args.seed, overwrite=args.overwrite, where=str(args.trajectory)
-        )
+            fp, wp, args.out, seed=args.seed, overwrite=args.overwrite,
+            where=str(args.trajectory), odom_rate=args.odom_rate,
+        )  # fmt: skip
     from mfcl_jax.io import read_tum
 
     t, _ = read_tum(out / "odometry.tum")
-    print(f"{out}: {len(t)} scans over {t[-1] - t[0]:.1f} s in {fp.name} (seed {args.seed})")
+    n_scans = len(list((out / "scans").glob("*.pcd")))
+    rate = f", odometry at {args.odom_rate:g} Hz ({len(t)} poses)" if args.odom_rate else ""
+    print(f"{out}: {n_scans} scans over {t[-1] - t[0]:.1f} s in {fp.name} (seed {args.seed}){rate}")
     return 0

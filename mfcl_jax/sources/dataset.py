@@ -188,7 +188,14 @@ def _scan_files(scan_dir: Path) -> tuple[list[Path], np.ndarray]:
 
 
 def write_dataset(
-    folder, floorplan, times, scans, odometry, groundtruth=None, overwrite: bool = False
+    folder,
+    floorplan,
+    times,
+    scans,
+    odometry,
+    groundtruth=None,
+    overwrite: bool = False,
+    odom_times=None,
 ) -> Path:
     """Writes a dataset folder atomically: everything goes to a temporary sibling folder that
     is renamed into place only when complete.
@@ -199,9 +206,11 @@ def write_dataset(
             (``.geojson``, ``.ifc``, or ``.yaml`` with its image).
         times: ``(N,)`` increasing scan times.
         scans: ``N`` arrays ``(n_i, 2)`` or ``(n_i, 3)``.
-        odometry: ``(N, 3)`` poses in L.
+        odometry: ``(N, 3)`` poses in L (or ``(M, 3)`` at ``odom_times``).
         groundtruth: optional ``(N, 3)`` poses in B.
         overwrite: replace an existing folder.
+        odom_times: optional ``(M,)`` increasing times of the odometry poses, when the
+            odometry runs at its own rate (default: one pose per scan, at the scan's time).
 
     Raises:
         DataError: inconsistent lengths, the folder exists and ``overwrite`` is False, or
@@ -211,10 +220,12 @@ def write_dataset(
 
     folder = Path(folder)
     times = np.asarray(times, float).reshape(-1)
-    if len(scans) != len(times) or len(np.asarray(odometry).reshape(-1, 3)) != len(times):
+    o_times = times if odom_times is None else np.asarray(odom_times, float).reshape(-1)
+    n_odo = len(np.asarray(odometry).reshape(-1, 3))
+    if len(scans) != len(times) or n_odo != len(o_times):
         raise DataError(
-            f"{folder}: {len(times)} times, {len(scans)} scans and "
-            f"{len(np.asarray(odometry).reshape(-1, 3))} odometry poses must agree"
+            f"{folder}: {len(times)} times, {len(scans)} scans, {len(o_times)} odometry times "
+            f"and {n_odo} odometry poses must agree"
         )
     if folder.exists() and not overwrite:
         raise DataError(f"{folder}: already exists (pass overwrite=True to replace it)")
@@ -233,7 +244,10 @@ def write_dataset(
         strs = [format_time(t) for t in times]
         if len(set(strs)) != len(strs):
             raise DataError(f"{folder}: scan times are not distinct at 1 ns")
-        write_tum(tmp / "odometry.tum", times, odometry, strs)
+        if odom_times is None:
+            write_tum(tmp / "odometry.tum", times, odometry, strs)
+        else:
+            write_tum(tmp / "odometry.tum", o_times, odometry, [format_time(t) for t in o_times])
         if groundtruth is not None:
             write_tum(tmp / "groundtruth.tum", times, groundtruth, strs)
         (tmp / "scans").mkdir()

@@ -198,6 +198,7 @@ def simulate_dataset(
     params: SimParams | None = None,
     overwrite: bool = False,
     where: str = "<waypoints>",
+    odom_rate: float | None = None,
 ):
     """Writes a dataset folder (atomically) of a walk along ``waypoints`` in ``floorplan``.
 
@@ -206,7 +207,9 @@ def simulate_dataset(
 
     The LiDAR sees the plan's wall faces only (no clutter is known for a user's building);
     the folder holds the floor plan as GeoJSON, ``odometry.tum``, ``scans/<t>.pcd`` and
-    ``groundtruth.tum``.
+    ``groundtruth.tum``. With ``odom_rate`` (Hz) the odometry is written at that rate with its
+    own stamps, as wheel odometry or an LIO publishes it (interpolated along the simulated
+    odometry, from the first scan's time to the last's), instead of one pose per scan.
     """
     from mfcl_jax.floorplan.origin import to_local_frame, to_plan_frame
     from mfcl_jax.sources.dataset import write_dataset
@@ -216,7 +219,17 @@ def simulate_dataset(
     check_waypoints(floorplan, wp, where)
     rec = simulate_walk(floorplan, wp, seed, params)
     gt = to_plan_frame(rec.truth.poses, floorplan.offset)
+    odo, o_times = rec.seq.odometry, None
+    if odom_rate is not None:
+        from mfcl_jax.io.timesync import interpolate_se2
+
+        if not odom_rate > 0:
+            raise ValueError(f"odom_rate must be positive, got {odom_rate!r}")
+        t = np.asarray(rec.seq.times, np.float64)
+        o_times = np.arange(t[0], t[-1], 1.0 / odom_rate)
+        o_times = np.append(o_times[o_times < t[-1] - 1e-6], t[-1])
+        odo = interpolate_se2(t, np.asarray(odo, np.float64), o_times)
     return write_dataset(
-        out, floorplan, rec.seq.times, rec.seq.scans, rec.seq.odometry, groundtruth=gt,
-        overwrite=overwrite,
+        out, floorplan, rec.seq.times, rec.seq.scans, odo, groundtruth=gt,
+        overwrite=overwrite, odom_times=o_times,
     )  # fmt: skip

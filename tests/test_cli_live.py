@@ -180,3 +180,36 @@ def test_an_unreadable_scan_is_retried_then_named(tmp_path):
     assert "first " in g.pending()[0] and "1.pcd (unreadable" in g.pending()[0]
     scans[1].write_bytes(whole)
     assert [len(s) for s in g.prefixes()] == [3] and g.pending() == []
+
+
+def test_odometry_at_its_own_rate_is_interpolated_at_each_scan_as_it_arrives(tmp_path):
+    """100 Hz odometry on stamps unlike the scans' (issue 29 item 1, in --follow too): a scan
+    joins once the odometry's complete lines pass its stamp, with the pose a finished folder
+    gives it; a scan stamped before the odometry's first line is left out and counted."""
+    from mfcl_jax.sources import from_dataset, load_dataset
+
+    st = np.array([0.5, 1.0037, 1.5037, 2.0037])  # the first before the odometry starts
+    to = 1.0 + 0.01 * np.arange(120)  # 100 Hz from t = 1.0 to 2.19
+    odo = np.stack([0.2 * (to - 1), 0.1 * np.sin(to), 0.3 * to], -1)
+    ds = write_dataset(tmp_path / "ds", symmetric_bays().floorplan, st,
+                       [np.ones((4, 2)) * (i + 1) for i in range(len(st))], odo,
+                       odom_times=to)  # fmt: skip
+    lines = (ds / "odometry.tum").read_text().splitlines(keepends=True)
+    (ds / "odometry.tum").write_text("".join(lines[:60]))  # odometry up to t = 1.58
+    clock = _Clock()
+    f = Follower(ds, idle_timeout=1.0, clock=clock, sleep=clock.sleep)
+    seqs = f.prefixes()
+    first = next(seqs)
+    assert len(first) == 2  # 1.0037 and 1.5037; 2.0037 waits for the odometry
+    with (ds / "odometry.tum").open("a") as o:
+        o.write("".join(lines[60:]))
+    whole = next(seqs)
+    assert list(seqs) == []
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the finished folder warns about the early scan
+        ref = from_dataset(load_dataset(ds))
+    np.testing.assert_array_equal(whole.times, ref.times)
+    np.testing.assert_allclose(whole.odometry, ref.odometry, atol=1e-9)
+    assert any("1 scans stamped before the odometry's first line" in p for p in f.pending())

@@ -1,9 +1,12 @@
 """A dataset folder that is still being written (``mfcl localize --follow DIR``).
 
-A recorder appends lines to ``odometry.tum`` and drops ``scans/<t>.pcd`` files. ``Follower``
-polls the folder and hands out ever longer ``ScanSequence`` prefixes for
-``Localizer.follow``: scan ``i`` joins once its odometry line is complete (ends with a
-newline) and its PCD reads. Scans join in odometry order, so a prefix never has a gap.
+A recorder appends lines to ``odometry.tum`` (at any rate, on stamps of its own) and drops
+``scans/<t>.pcd`` files. ``Follower`` polls the folder and hands out ever longer
+``ScanSequence`` prefixes for ``Localizer.follow``: a scan joins, in time order, once its PCD
+reads and the odometry's complete lines (ending with a newline) reach its stamp; its pose is
+interpolated there (``io.timesync``, as for a finished folder). A scan stamped before the
+odometry's first line, or older than a scan that already joined (it arrived late), is left
+out and counted (``Follower.pending``).
 
 A PCD that does not read yet (empty, truncated: the recorder is still writing it) is retried
 at every poll. It is an error only when it cannot be a write in progress: its size and time
@@ -15,14 +18,15 @@ The run ends when nothing new has arrived for ``idle_timeout`` seconds (or on Ct
 the caller handles); ``Follower.pending`` then says what was still waiting.
 
 3-D clouds are cut as they arrive (``sources.planar.PlanarStream``: the floor is the median of
-those seen so far). The streaming decision's buffers double as the run grows (8, 16, 32, ...
-windows): each doubling compiles the decision kernel once, a pause of a few seconds at windows
-9, 17, 33, ... on the first run, a trace and a cache read (about a second) afterwards.
+those seen so far). Windows are decided as they complete by the localizer's one jitted step,
+whose buffers have fixed capacities, so a long run compiles nothing new.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
+import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -31,6 +35,7 @@ import numpy as np
 
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import pcd_fields, read_pcd
+from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2
 from mfcl_jax.io.tum import parse_tum
 from mfcl_jax.sources.planar import PlanarParams, PlanarStream
 from mfcl_jax.sources.sequence import ScanSequence
@@ -76,11 +81,15 @@ class Follower:
         self._planar = PlanarStream(planar or PlanarParams())
         self._xyz: bool | None = None
         self._offset, self._line = 0, 1
-        self._times: list[float] = []
-        self._strs: list[str] = []
+        self._times: list[float] = []  # odometry
         self._poses: list[np.ndarray] = []
-        self._read = 0  # odometry lines whose scan has been read
+        self._seen: dict[str, float] = {}  # scan file name -> stamp
+        self._queue: list[tuple[float, Path]] = []  # scans not joined yet, in time order
+        self._joined_t: list[float] = []  # stamps and poses of the scans read, in order
+        self._joined_pose: list[np.ndarray] = []
         self._scans: list[np.ndarray] = []
+        self._early = 0  # scans before the odometry's first stamp, left out
+        self._late = 0  # scans older than one that already joined, left out
         self._failed: dict[Path, tuple] = {}  # unreadable scan -> (size, mtime, since, error)
 
     @property
@@ -97,26 +106,31 @@ class Follower:
         return self._planar.dim
 
     def pending(self) -> list[str]:
-        """What was still waiting when the run stopped, one sentence each."""
+        """What was still waiting, or was left out, when the run stopped; one sentence each."""
         out = []
-        waiting = self.n_odometry - self._read
-        if waiting:
-            path = self._scan_path(self._read)
+        if self._queue:
+            path = self._queue[0][1]
             why = self._failed.get(path)
-            what = f"unreadable: {why[3]}" if why else "no such file yet"
-            out.append(
-                f"{self.odometry_path}: {waiting} odometry lines still had no scan, first "
-                f"{path} ({what})"
-            )
+            if why:
+                what = f"unreadable: {why[3]}"
+            elif not self._times:
+                what = "no odometry line yet"
+            else:
+                what = f"the odometry's complete lines end at t={self._times[-1]:.6f} s"
+            out.append(f"{self.scan_dir}: {len(self._queue)} scans still waiting, first {path} "
+                       f"({what})")  # fmt: skip
+        if self._early:
+            out.append(f"{self.scan_dir}: {self._early} scans stamped before the odometry's "
+                       f"first line (t={self._times[0]:.6f} s) were left out")  # fmt: skip
+        if self._late:
+            out.append(f"{self.scan_dir}: {self._late} scans arrived after a later scan had "
+                       "joined and were left out")  # fmt: skip
         if self._planar.waiting:
             out.append(
                 f"{self.folder}: {self._planar.waiting} 3-D clouds were waiting for a floor to "
                 "be seen"
             )
         return out
-
-    def _scan_path(self, i: int) -> Path:
-        return self.scan_dir / f"{self._strs[i]}.pcd"
 
     def _read_odometry(self) -> bool:
         """Parses the complete lines appended since the last poll; True when there were."""
@@ -136,8 +150,35 @@ class Follower:
         self._line += len(lines)
         self._times += list(t)
         self._poses += list(poses)
-        self._strs += strs
         return len(strs) > 0
+
+    def _list_scans(self) -> bool:
+        """Adds the scan files that appeared since the last poll; True when there were."""
+        try:
+            names = [n for n in os.listdir(self.scan_dir) if n.endswith(".pcd")]
+        except (FileNotFoundError, NotADirectoryError):
+            return False
+        new = False
+        for name in names:
+            if name in self._seen:
+                continue
+            path = self.scan_dir / name
+            try:
+                t = float(name[:-4])
+            except ValueError:
+                t = math.nan
+            if not math.isfinite(t):
+                raise DataError(f"{path}: a scan file is named by its time in seconds (e.g. "
+                                f"1000.5.pcd), got {name[:-4]!r}")  # fmt: skip
+            same = next((n for n, u in self._seen.items() if u == t), None)
+            if same is not None:
+                raise DataError(f"{path}: scan time t={t!r} is also the time of {same}")
+            self._seen[name] = t
+            self._queue.append((t, path))
+            new = True
+        if new:
+            self._queue.sort(key=lambda e: e[0])
+        return new
 
     def _read_scan(self, path: Path):
         """The points of ``path``, or ``None`` while it may still be being written."""
@@ -154,8 +195,7 @@ class Follower:
             old = self._failed.get(path)
             since = old[2] if old and old[:2] == stamp else self._clock()
             self._failed[path] = (*stamp, since, str(e))
-            nxt = self._read + 1
-            later = nxt < self.n_odometry and self._scan_path(nxt).exists()
+            later = len(self._queue) > 1
             if later and self._clock() - since >= self.settle:
                 raise DataError(
                     f"{e} (unchanged for {self.settle:g} s while later scans arrived)"
@@ -165,17 +205,31 @@ class Follower:
         return pts
 
     def _read_scans(self) -> bool:
-        """Reads the scans of the odometry lines in order, up to the first missing one."""
+        """Joins the waiting scans in time order, up to the first one the odometry does not
+        reach yet or that does not read yet."""
         grew = False
-        while self._read < self.n_odometry:
-            path = self._scan_path(self._read)
-            if not path.is_file():
+        while self._queue and self._times:
+            t, path = self._queue[0]
+            if t < self._times[0] - TIME_TOL_S or (self._joined_t and t <= self._joined_t[-1]):
+                self._queue.pop(0)
+                if self._joined_t and t <= self._joined_t[-1]:
+                    self._late += 1
+                else:
+                    self._early += 1
+                grew = True
+                continue
+            if t > self._times[-1] + TIME_TOL_S:
                 break
             pts = self._read_scan(path)
             if pts is None:
                 break
+            self._queue.pop(0)
+            i = bisect.bisect_left(self._times, t)
+            lo, hi = max(i - 1, 0), min(i + 1, len(self._times))
+            pose = interpolate_se2(self._times[lo:hi], np.asarray(self._poses[lo:hi]), [t])[0]
+            self._joined_t.append(t)
+            self._joined_pose.append(pose)
             self._scans += self._planar.push(pts, str(path))
-            self._read += 1
             grew = True
         return grew
 
@@ -185,7 +239,7 @@ class Follower:
         if n == 0:
             return None
         return ScanSequence(
-            np.asarray(self._times[:n]), list(self._scans), np.asarray(self._poses[:n]),
+            np.asarray(self._joined_t[:n]), list(self._scans), np.asarray(self._joined_pose[:n]),
             str(self.folder),
         )  # fmt: skip
 
@@ -196,8 +250,9 @@ class Follower:
         while True:
             before = self.n_scans
             new_lines = self._read_odometry()
+            new_files = self._list_scans()
             new_scans = self._read_scans()
-            if new_lines or new_scans:
+            if new_lines or new_files or new_scans:
                 last = self._clock()
             if self.n_scans > before:
                 yield self.sequence()

@@ -1,9 +1,18 @@
-"""Decision-layer timing: every window x policy x threshold set of one run, and a full batch.
+"""Decision-layer timing: every window x lane (policy x threshold set) of one run, and a batch.
 
-Compile time is reported apart; run times are medians of repeated calls, as wall time and as
-process CPU time (all threads; steadier than wall time on a shared machine), with the 1-minute
-load average next to them. Cases: ``one_run`` and ``batch`` (S=4 threshold sets, J=64) and
-``study`` (the study's sweep: 120 runs, S=1, J=32). Writes ``results/bench_decision.csv``.
+The batch decision is ``decision.runs``: ``run_inputs`` lays the windows out on the host,
+``decide_runs`` decides every lane at every window in one compiled call per chunk of runs
+(``vmap`` over runs of ``lax.scan(layer.update)``), the rival search included, as the study
+and the benchmark call it. The first call compiles: its ``compile_s`` is ``decide_runs``'
+compile time and ``compile_cpu_s`` the process CPU time of that call less a later call's.
+Run times are medians of ``--reps`` further calls: ``median_s`` the compiled calls alone
+(``decide_runs``' ``run_s``, what ``per_decision_us`` divides), ``median_call_s`` and
+``median_cpu_s`` the whole ``decide_runs`` call (maps, padding, transfers) as wall time and
+process CPU time (all threads; steadier than wall time on a shared machine), with the
+1-minute load average next to them. ``V`` is the lanes per threshold set (every variant of
+``OURS_VARIANTS`` and the baselines). Cases: ``one_run`` and ``batch`` (S=4 threshold sets,
+J=64) and ``study`` (the study's sweep: 120 runs, S=1, J=32). Writes
+``results/bench_decision.csv``.
 Usage: ``python benchmarks/decision.py [--runs 100] [--cases one_run,batch,study]``.
 """
 
@@ -17,21 +26,28 @@ import sys
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
 from mfcl_jax import se2
-from mfcl_jax.decision import DecisionParams, decision_maps, evaluate, policy_names, variants
+from mfcl_jax import windows as W
+from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
+from mfcl_jax.decision import OURS_VARIANTS, DecisionParams, make_lanes, run_inputs
+from mfcl_jax.decision import runs as decision_runs
+from mfcl_jax.frontend.candidates import Candidates
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from tests.test_decision_scenes import PITCH, row_of_rooms, walk  # noqa: E402
+from tests.test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk  # noqa: E402
 
 
-def synth_batch(R, K, J, T, seed=0):
-    """Random-ish runs in the 4-room row: true, +-pitch aliases and clutter candidates."""
+def synth_batch(fp, R, K, J, T, seed=0):
+    """Random-ish runs in the 4-room row: true, +-pitch aliases and clutter candidates.
+
+    Returns the ``WindowBatch`` (one odometry segment per run, disjoint windows, each
+    window's evidence a ray cast of the walls at its true pose) and its ``Candidates``."""
     rng = np.random.default_rng(seed)
     tb = walk([[10, 2.5], [18, 2.5], [10, 2.5], [3, 2.5], [26, 2.5]], step=46.0 / (T - 1))[:T]
+    T = len(tb)
     H = np.zeros((R, K, J, 3), np.float32)
     S = rng.uniform(0, 0.5, (R, K, J)).astype(np.float32)
     trajs = np.zeros((R, T, 3), np.float32)
@@ -44,45 +60,77 @@ def synth_batch(R, K, J, T, seed=0):
         H[r, :, 1] = A + [PITCH, 0, 0]
         S[r, :, 0] = rng.uniform(0.8, 1.0, K)
         S[r, :, 1] = rng.uniform(0.7, 1.05, K)
-    return (
-        H,
-        S,
-        np.ones((R, K, J), bool),
-        trajs,
-        np.ones((R, T), bool),
-        np.tile(ends, (R, 1)),
-        np.ones((R, K), bool),
+    X = trajs[:, ends]  # (R, K, 3) odometry pose of each window's last keyframe
+    Y = np.asarray(se2.compose(H, X[:, :, None]), np.float32)  # candidates ^B T_S
+    ev = [np.tile(e, (R,) + (1,) * e.ndim) for e in evidence_at(fp, tb[ends])]
+    n = R * K
+    runs = W.RunBatch(
+        traj=trajs,
+        traj_seg=np.zeros((R, T), np.int32),
+        traj_mask=np.ones((R, T), bool),
+        window_start=np.tile(np.r_[0, ends[:-1] + 1].astype(np.int32), (R, 1)),
+        window_end=np.tile(ends, (R, 1)),
+        window_mask=np.ones((R, K), bool),
+        submap=np.arange(n, dtype=np.int32).reshape(R, K),
     )
+    subs = W.SubmapBatch(
+        points=np.zeros((n, 1, 2), np.float32),  # not read by the decision
+        origins=np.zeros((n, 1, 2), np.float32),
+        mask=np.zeros((n, 1), bool),
+        X=X.reshape(n, 3),
+        run=np.repeat(np.arange(R, dtype=np.int32), K),
+        window=np.tile(np.arange(K, dtype=np.int32), R),
+        t=np.zeros(n),
+        n_dropped=np.zeros(n, np.int32),
+    )
+    evidence = W.Evidence(*(e.reshape(n, *e.shape[2:]) for e in ev))
+    batch = W.WindowBatch(subs, runs, np.zeros(n, np.int32), np.zeros(R, np.int32), evidence)
+    cands = Candidates(
+        Y.reshape(n, J, 3), S.reshape(n, J), np.ones((n, J), bool), np.zeros(n, np.int32)
+    )
+    return batch, cands
 
 
-def bench(name, args, maps, params, var, reps, chunk):
-    args = [jnp.asarray(a) for a in args]
-    kw = {} if chunk is None else {"run_chunk": chunk}
-    t0, c0 = time.perf_counter(), time.process_time()
-    comp = evaluate.lower(*args, maps, params, var, **kw).compile()
-    t_compile, c_compile = time.perf_counter() - t0, time.process_time() - c0
-    times, cpu = [], []
-    for _ in range(reps):
+def bench(name, fp, batch, cands, sets, reps, chunk):
+    """Compile, then ``reps`` timed calls of ``decide_runs`` on ``batch``."""
+    primary_set = DEFAULT_SET if len(sets) > DEFAULT_SET else 0
+    p, lanes, spec = make_lanes(sets, tuple(OURS_VARIANTS), True, "ours", primary_set)
+    inputs = run_inputs(batch, cands)
+
+    def call():
         t0, c0 = time.perf_counter(), time.process_time()
-        jax.block_until_ready(comp(*args, maps, params, var))
-        times.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    R, K = args[0].shape[:2]
-    S, V = params.tau_c.shape[0], len(policy_names())
-    med = float(np.median(times))
+        _, tm = decision_runs.decide_runs(inputs, batch.run_building, [fp], p, lanes, spec,
+                                          runs_per_call=chunk)  # fmt: skip
+        return tm, time.perf_counter() - t0, time.process_time() - c0
+
+    decision_runs._COMPILED.clear()  # every case reports its own compilation
+    first, _, c_first = call()
+    tms, wall, cpu = [], [], []
+    for _ in range(reps):
+        tm, w, c = call()
+        tms.append(tm)
+        wall.append(w)
+        cpu.append(c)
+    R, K = batch.runs.n_runs, batch.runs.n_windows
+    S, V = spec.n_sets, len(spec.names) // spec.n_sets
+    med = float(np.median([tm["run_s"] for tm in tms]))
+    med_cpu = float(np.median(cpu))
     return dict(
         case=name,
         R=R,
         K=K,
-        J=args[0].shape[2],
-        T=args[3].shape[1],
+        J=int(cands.pose.shape[1]),
+        T=int(batch.runs.traj.shape[1]),
         S=S,
         V=V,
-        compile_s=t_compile,
-        compile_cpu_s=c_compile,
+        runs_per_call=min(chunk, R),  # decide_runs never pads past the batch
+        compile_s=first["compile_s"],
+        compile_cpu_s=max(c_first - med_cpu, 0.0),
         median_s=med,
-        median_cpu_s=float(np.median(cpu)),
+        median_call_s=float(np.median(wall)),
+        median_cpu_s=med_cpu,
         per_decision_us=1e6 * med / (R * K * S * V),
+        searches=tms[-1]["searches"],
         device=jax.devices()[0].device_kind,
         host=platform.node(),
     )
@@ -101,27 +149,28 @@ def main():
     ap.add_argument("--cases", default="one_run,batch,study")
     ap.add_argument("--out", default="results/bench_decision.csv")
     a = ap.parse_args()
-    maps = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms()))
-    params = DecisionParams.stack([DecisionParams(tau_c=t) for t in np.linspace(0.4, 0.7, a.sets)])
-    var = variants()
-    p1 = DecisionParams.stack([DecisionParams()])
+    if not 1 <= a.sets <= len(KNOB_SETS):
+        ap.error(f"--sets must be 1..{len(KNOB_SETS)} (bench.run.KNOB_SETS)")
+    fp = row_of_rooms()
+    # threshold sets differ only in the knobs (``decision.KNOBS``): the benchmark's sweep
+    sets = [DecisionParams().replace(**k) for k in KNOB_SETS[: a.sets]]
+    one = [DecisionParams()]
     cases = {
         "one_run": lambda: bench(
-            "one_run", synth_batch(1, a.windows, a.J, a.T), maps, params, var, a.reps, 1
+            "one_run", fp, *synth_batch(fp, 1, a.windows, a.J, a.T), sets, a.reps, 1
         ),
         "batch": lambda: bench(
-            "batch", synth_batch(a.runs, a.windows, a.J, a.T, 1), maps, params, var, a.reps, 8
+            "batch", fp, *synth_batch(fp, a.runs, a.windows, a.J, a.T, 1), sets, a.reps, 8
         ),
         # the study's sweep: one threshold set, J=32, every policy
         "study": lambda: bench(
             "study",
-            synth_batch(a.study_runs, a.windows, a.study_J, a.T, 2),
-            maps,
-            p1,
-            var,
+            fp,
+            *synth_batch(fp, a.study_runs, a.windows, a.study_J, a.T, 2),
+            one,
             a.reps,
             8,
-        ),
+        ),  # fmt: skip
     }
     rows = []
     for name in a.cases.split(","):

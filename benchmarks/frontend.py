@@ -398,8 +398,9 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
     print("roofline:", sentence, flush=True)
     trows.append(dict(kind="roofline", stage=sentence, load=load()))
     tdf = pd.DataFrame(trows)
-    ints = ["P", "chunk", "n_submaps", "repeats", "area_x"]
-    tdf[ints] = tdf[ints].astype("Int64")  # the roofline row leaves them empty
+    # the roofline row leaves them empty; --quick writes no area rows (no area_x)
+    ints = [c for c in ("P", "chunk", "n_submaps", "repeats", "area_x") if c in tdf]
+    tdf[ints] = tdf[ints].astype("Int64")
     tdf.to_csv(out / "frontend_timing.csv", index=False)
     figure(df, pd.DataFrame(errs), tdf, p, out / "frontend.png")
     return df, tdf

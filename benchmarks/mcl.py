@@ -24,10 +24,10 @@ from pathlib import Path
 import jax
 import numpy as np
 import pandas as pd
-from mfcl_jax.report.metrics import CORRECT_XY, CORRECT_YAW_DEG
 
 from mfcl_jax import se2
 from mfcl_jax.peers import MCLParams, commits, make_mcl, prepare_mcl_inputs
+from mfcl_jax.score import CORRECT_XY, CORRECT_YAW_DEG
 from mfcl_jax.sources.simulated import simulate as scene_recordings
 from mfcl_jax.windows import travelled, window_bounds
 

@@ -48,6 +48,7 @@ FAULTS = {
     "as_built": ("missing_wall", "extra_partition", "moved_door"),
     "scale": (1.0, 1.01, 1.02),  # floor-plan scale error
     "restart": (0.35, 0.5, 0.65),  # odometry restart at this fraction of the walk
+    "plan": ("no_doors", "rooms_only"),  # the plan without door features; rooms only
 }
 POLICIES = (
     "ours",

@@ -175,6 +175,8 @@ def _faulted(axis: str, level, fam: str, seed: int):
         scene = families.with_as_built(scene, str(level), seed)
     elif axis == "scale":
         scene = families.with_scale_error(scene, float(level)) if level != 1.0 else scene
+    elif axis == "plan":
+        scene = families.with_plan_format(scene, str(level))
     else:
         raise KeyError(axis)
     return scene, sim

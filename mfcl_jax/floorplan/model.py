@@ -15,6 +15,7 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.ops import unary_union
 
+from mfcl_jax.floorplan import passages
 from mfcl_jax.floorplan.outline import boundary_segments, wall_corners
 
 __all__ = [
@@ -77,6 +78,8 @@ class Floorplan:
             held here + ``offset``. Zero unless the loader moved a plan that lies far from
             the origin (georeferenced) next to it, so that float32 rasters and kernels keep
             their precision (``mfcl_jax.floorplan.origin``).
+        walls_derived: True when the plan came with rooms only and its walls are the rooms'
+            free boundaries (``passages.walls_from_rooms``).
     """
 
     walls: np.ndarray
@@ -87,12 +90,20 @@ class Floorplan:
     name: str = "floorplan"
     source: str = "<memory>"
     offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    walls_derived: bool = False
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
         walls = np.asarray(self.walls, dtype=np.float64).reshape(-1, 2, 2)
+        thickness = self.thickness
+        if walls.shape[0] == 0 and not self.wall_polygons and self.rooms:
+            # a plan of rooms only: the rooms' free boundaries are its walls
+            polys = [r.polygon for r in self.rooms if isinstance(r.polygon, Polygon)]
+            walls = passages.walls_from_rooms(polys)
+            thickness = passages.DERIVED_THICKNESS
+            object.__setattr__(self, "walls_derived", bool(len(walls)))
         thick = np.broadcast_to(
-            np.asarray(self.thickness, dtype=np.float64), (walls.shape[0],)
+            np.asarray(thickness, dtype=np.float64), (walls.shape[0],)
         ).copy()
         object.__setattr__(self, "walls", walls)
         object.__setattr__(self, "thickness", thick)
@@ -169,9 +180,11 @@ class Floorplan:
 
     @cached_property
     def adjacency(self) -> np.ndarray:
-        """Room graph ``(R, R)`` bool: rooms joined by a door (diagonal True)."""
+        """Room graph ``(R, R)`` bool (diagonal True): rooms joined by a door, or by an open
+        passage where the plan marks none (``passages.open_adjacency``)."""
         n = len(self.rooms)
-        adj = np.eye(n, dtype=bool)
+        polys = [r.polygon for r in self.rooms]
+        adj = np.eye(n, dtype=bool) | passages.open_adjacency(polys, self.wall_solid)
         for door in self.doors:
             if len(door.rooms) == 2:
                 a, b = (self.room_index(r) for r in door.rooms)

@@ -24,7 +24,12 @@ import numpy as np
 from mfcl_jax.sim.families.asbuilt import AS_BUILT_KINDS, NotApplicable, with_as_built
 from mfcl_jax.sim.families.common import family_rng
 from mfcl_jax.sim.families.corridors import bays, corridor
-from mfcl_jax.sim.families.faults import with_clutter, with_scale_error
+from mfcl_jax.sim.families.faults import (
+    PLAN_FORMATS,
+    with_clutter,
+    with_plan_format,
+    with_scale_error,
+)
 from mfcl_jax.sim.families.halls import hall
 from mfcl_jax.sim.families.mirror import mirror
 from mfcl_jax.sim.families.offices import offices
@@ -42,6 +47,8 @@ __all__ = [
     "with_clutter",
     "with_as_built",
     "with_scale_error",
+    "with_plan_format",
+    "PLAN_FORMATS",
     "write_family_geojson",
 ]
 

@@ -3,6 +3,9 @@
 * ``with_clutter``: more furniture (the LiDAR's world), plan and walks untouched.
 * ``with_scale_error``: the plan (what the robot is given) is scaled about its centre; the world
   (real walls, clutter) and the walks stay true to scale.
+* ``with_plan_format``: the plan as many exports give it: without its door features
+  (``no_doors``), or rooms only, without walls and doors (``rooms_only``); the world is
+  unchanged.
 
 As-built deviations of the walls are in ``asbuilt``. Apply ``with_clutter`` and
 ``with_as_built`` before ``with_scale_error``: both read the plan's rooms and doors as the
@@ -22,7 +25,9 @@ from mfcl_jax.sim.families.asbuilt import seeded
 from mfcl_jax.sim.families.clutter import furnish
 from mfcl_jax.sim.world3d import DEFAULT_CLUTTER_HEIGHT
 
-__all__ = ["with_clutter", "with_scale_error"]
+__all__ = ["with_clutter", "with_scale_error", "with_plan_format", "PLAN_FORMATS"]
+
+PLAN_FORMATS = ("no_doors", "rooms_only")
 
 
 def with_clutter(scene, area_fraction: float, seed: int):
@@ -94,4 +99,31 @@ def with_scale_error(scene, factor: float):
         floorplan=plan,
         as_built=fp.wall_faces if scene.as_built is None else scene.as_built,
         description=f"{scene.description}; plan scale error x{f:g}",
+    )
+
+
+def with_plan_format(scene, fmt: str):
+    """The plan without its doors (``no_doors``) or with its rooms only (``rooms_only``:
+    no walls, no doors; ``Floorplan`` draws walls along the rooms' free boundaries). The world
+    (the walls the LiDAR sees, clutter) and the walks are unchanged.
+
+    Args:
+        scene: a ``Scene``.
+        fmt: one of ``PLAN_FORMATS``.
+    """
+    if fmt not in PLAN_FORMATS:
+        raise ValueError(f"with_plan_format: fmt must be one of {PLAN_FORMATS}, got {fmt!r}")
+    fp = scene.floorplan
+    if fmt == "no_doors":
+        plan = Floorplan(walls=fp.walls, thickness=fp.thickness, rooms=fp.rooms,
+                         wall_polygons=fp.wall_polygons, name=fp.name,
+                         source=f"{fp.source} without doors")  # fmt: skip
+    else:
+        plan = Floorplan(walls=np.zeros((0, 2, 2)), thickness=0.1, rooms=fp.rooms, name=fp.name,
+                         source=f"{fp.source} rooms only")  # fmt: skip
+    return dataclasses.replace(
+        scene,
+        floorplan=plan,
+        as_built=fp.wall_faces if scene.as_built is None else scene.as_built,
+        description=f"{scene.description}; plan {fmt.replace('_', ' ')}",
     )

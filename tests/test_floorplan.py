@@ -70,8 +70,12 @@ def test_rasters():
     assert r.adjacency.tolist() == [[True, True], [True, True]]
 
 
-def test_adjacency_from_doors():
-    fp = two_rooms(doors=())
+def test_adjacency_from_doors_and_open_passages():
+    assert two_rooms().adjacency.tolist() == [[True, True], [True, True]]
+    # without the door feature, the 1 m gap in the partition is still an open passage
+    assert two_rooms(doors=()).adjacency.tolist() == [[True, True], [True, True]]
+    closed = np.concatenate([two_rooms().walls[:4], [[[5, 0], [5, 8]]]])
+    fp = two_rooms(doors=(), walls=closed, thickness=0.2)
     assert fp.adjacency.tolist() == [[True, False], [False, True]]
 
 
@@ -182,8 +186,8 @@ def test_bad_model_level_errors():
     fp = two_rooms()
     with pytest.raises(FloorplanError, match="no rooms"):
         Floorplan(walls=fp.walls, thickness=0.2, rooms=())
-    with pytest.raises(FloorplanError, match="no walls"):
-        Floorplan(walls=np.zeros((0, 2, 2)), thickness=0.2, rooms=fp.rooms)
+    # rooms only: the walls are drawn along the rooms' free boundaries, not refused
+    assert Floorplan(walls=np.zeros((0, 2, 2)), thickness=0.2, rooms=fp.rooms).walls_derived
     with pytest.raises(FloorplanError, match="duplicate room name"):
         Floorplan(walls=fp.walls, thickness=0.2, rooms=(fp.rooms[0], fp.rooms[0]))
     with pytest.raises(FloorplanError, match="wall #1: thickness"):

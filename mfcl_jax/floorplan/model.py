@@ -102,9 +102,7 @@ class Floorplan:
             walls = passages.walls_from_rooms(polys)
             thickness = passages.DERIVED_THICKNESS
             object.__setattr__(self, "walls_derived", bool(len(walls)))
-        thick = np.broadcast_to(
-            np.asarray(thickness, dtype=np.float64), (walls.shape[0],)
-        ).copy()
+        thick = np.broadcast_to(np.asarray(thickness, dtype=np.float64), (walls.shape[0],)).copy()
         object.__setattr__(self, "walls", walls)
         object.__setattr__(self, "thickness", thick)
         object.__setattr__(self, "rooms", tuple(self.rooms))

@@ -1,0 +1,126 @@
+"""Is the path seen so far explained by one placement in the building, and by no other?
+
+A count of windows (``b_min`` of them, sharing no scan) is a proxy for "no other place
+explains what I have seen"; this module checks that statement, with a stated error model
+(``frontend.path_llr``), so a lane may commit as soon as it holds, whatever the count:
+
+1. the candidates: every placement of the whole path that the global search finds
+   (``frontend.path_search``: exhaustive over headings at 5 deg and translations at 0.5 m,
+   then polished), the newest window's best registrations, the consensus winner ``T*`` and
+   the probe's aliases of it (the building's known symmetries);
+2. each is fitted to the path under the observation model (``path_llr.refine``), and the best
+   ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
+   5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``;
+3. the statement holds when ``llr >= log(1 / alpha)``: under the model, a wrong placement
+   reaches that margin against the truth with probability at most ``alpha`` (Wald's bound
+   for one sequential test; with a search that covers every placement it is the bound for
+   the best wrong one).
+
+Vetoes (the layer's checks, kept): ``A*`` must pass the feasibility gate, agree with the
+newest window's champion, and not disagree with a consensus winner of two or more windows.
+
+The search covers every placement on its grid, then the peaks are polished, so a competitor
+narrower than the grid's cell (0.5 m, 5 deg) can be missed: the certificate is exhaustive at
+that resolution, not a bound over the continuum.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+from mfcl_jax import se2
+from mfcl_jax.decision import gate, rivals
+from mfcl_jax.frontend import path_llr
+from mfcl_jax.frontend.path_llr import LLRParams
+
+__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "skipped"]
+
+
+@dataclass(frozen=True)
+class UniqueParams:
+    """Settings of the uniqueness test (static; one setting for every building)."""
+
+    alpha: float = 1e-3  # error rate of the sequential test
+    near_xy: float = 1.0  # m: placements this close to A* are the same answer
+    near_deg: float = 5.0
+    n_search: int = 8  # placements kept from the global search
+    n_newest: int = 3  # best registrations of the newest window
+    max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
+    llr: LLRParams = LLRParams()
+
+    @property
+    def threshold(self) -> float:
+        return math.log(1.0 / self.alpha)
+
+
+DEFAULT_UNIQUE = UniqueParams()
+
+
+@dataclass(frozen=True)
+class UniqStats:
+    """The test at one window (``ran`` false: not tested; everything else zero)."""
+
+    anchor: jax.Array  # (3,) A*
+    competitor: jax.Array  # (3,) the best candidate outside A*'s neighbourhood
+    llr: jax.Array  # () L(A*) - L(competitor); +inf without a competitor
+    holds: jax.Array  # () bool llr >= log(1 / alpha) and no veto
+    c_gate: jax.Array  # () gate consistency of A*
+    ran: jax.Array  # () bool
+
+
+jax.tree_util.register_dataclass(
+    UniqStats, data_fields=list(UniqStats.__dataclass_fields__), meta_fields=[]
+)
+
+
+def skipped() -> UniqStats:
+    z3 = jnp.zeros(3, jnp.float32)
+    f = jnp.float32(0.0)
+    return UniqStats(z3, z3, f, jnp.bool_(False), f, jnp.bool_(False))
+
+
+def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, champion,
+               champion_ok, winner_b1, tau_c, delta_xy, delta_theta,
+               u: UniqueParams = DEFAULT_UNIQUE) -> UniqStats:  # fmt: skip
+    """The test on the layer's history ``h`` and path (module docstring).
+
+    Args:
+        h: ``History``; path: ``Path`` (its poses gate ``A*``); maps: ``DecisionMaps``;
+        fields: ``PlanFields`` of the search; n_img: static image side of the search.
+        t_star: ``(3,)`` consensus winner; aliases, aliases_ok: ``(A, 3)``, ``(A,)`` the
+            probe's aliases of it; champion, champion_ok: the newest window's champion.
+        winner_b1: ``()`` the consensus winner's scan-disjoint support.
+        tau_c: gate threshold; delta_xy, delta_theta: grouping tolerances (the vetoes).
+    """
+    k = h.n - 1
+    rp = rivals.RivalParams(n_rivals=u.n_search, keep_ratio=0.0)
+    found, found_ok = rivals.search(h.ev_points, h.ev_origins, h.ev_mask, h.X, fields, n_img, rp)
+    Hk, sk, mk = h.H[k], h.score[k], h.mask[k]
+    top = jnp.argsort(jnp.where(mk, -sk, jnp.inf))[: u.n_newest]
+    cand = jnp.concatenate([found, Hk[top], t_star[None], aliases]).astype(jnp.float32)
+    ok = jnp.concatenate([found_ok, mk[top], jnp.ones(1, bool), aliases_ok])
+    pe = path_llr.path_evidence(h.ev_points, h.ev_origins, h.ev_mask, h.X, path.dist, u.llr)
+    A, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr))(cand)
+    L = jnp.where(ok, L, -jnp.inf)
+    i = jnp.argmax(L)
+    best = A[i]
+    # judged where the robot is now: the same answer is within the line a commit is judged by
+    x_now = h.X[k]
+    dxy, dth = se2.distance_pair(se2.compose(A, x_now), se2.compose(best, x_now))
+    far = ok & ((dxy > u.near_xy) | (dth > math.radians(u.near_deg)))
+    lc = jnp.where(far, L, -jnp.inf)
+    j = jnp.argmax(lc)
+    llr = L[i] - lc[j]
+    pvalid = jnp.arange(path.pose.shape[0]) < path.n
+    walk = gate.extend_walk(maps, best[None], path.pose, pvalid, gate.start_walk((1,)))
+    c_gate = walk.consistency()[0]
+    cxy, cth = se2.distance_pair(champion, best)
+    agrees = champion_ok & (cxy <= delta_xy) & (cth <= delta_theta)
+    txy, tth = se2.distance_pair(t_star, best)
+    contradicted = (winner_b1 >= 2) & ((txy > delta_xy) | (tth > delta_theta))
+    holds = (llr >= u.threshold) & (c_gate >= tau_c) & agrees & ~contradicted & jnp.any(ok)
+    return UniqStats(best, A[j], llr, holds, c_gate, jnp.bool_(True))

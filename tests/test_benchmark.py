@@ -60,18 +60,32 @@ SMALL = dict(
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
+    """The small benchmark's output folder, its tables and what ``collect`` kept (the light
+    recordings and the windows, for checks against the recordings' own odometry)."""
+    import mfcl_jax.bench.main as bench_main
+
     root = tmp_path_factory.mktemp("bench")
     cfg = BenchmarkConfig(**SMALL, out=str(root / "one"), cache=str(root / "cache"))
-    tables = run_benchmark(cfg)
-    return root, tables
+    kept = []
+
+    def spy(*a, **kw):
+        kept.append(collect(*a, **kw))
+        return kept[-1]
+
+    collect = bench_main.collect
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(bench_main, "collect", spy)
+        tables = run_benchmark(cfg)
+    return root, tables, kept[0]
 
 
 def test_small_benchmark_writes_every_table(small):
-    root, tables = small
+    root, tables, _ = small
     out = root / "one"
     for name in ("runs.csv", "labels.csv", "families.md", "overall.md", "risk_coverage.csv",
                  "risk_coverage.png", "faults/restart.md", "faults/restart.png",
-                 "windows.csv.gz", "timings.md", "families/bays.png", "margins.md"):  # fmt: skip
+                 "windows.csv.gz", "timings.md", "families/bays.png", "margins.md",
+                 "commit_distance.png"):  # fmt: skip
         assert (out / name).is_file(), name
     fam = tables["families"]
     assert set(fam["policy"]) == set(SMALL["policies"])
@@ -84,6 +98,104 @@ def test_small_benchmark_writes_every_table(small):
     rc = tables["risk_coverage"]
     assert (rc.groupby("policy")["set"].nunique() > 1).all()  # a curve, not a point
     assert rc["false_rate"].between(0, 1).all() and rc["coverage"].between(0, 1).all()
+
+
+def _metres_from_odometry(rec, w) -> np.ndarray:
+    """Metres travelled by the end of each window, straight from the recording's odometry:
+    the path over every scan up to the window's last one, an odometry jump counting nothing
+    (a simulated walk keeps every scan as a keyframe)."""
+    from mfcl_jax.windows import odometry_segments
+
+    odo = np.asarray(rec.seq.odometry, np.float64)
+    seg = odometry_segments(odo, rec.seq.times)
+    step = np.linalg.norm(np.diff(odo[:, :2], axis=0), axis=1) * (np.diff(seg) == 0)
+    path = np.concatenate([[0.0], np.cumsum(step)])
+    return path[w.last_scan()]
+
+
+def test_distance_to_commit_is_the_odometry_travelled(small):
+    """``commit_m`` / ``oracle_m`` / ``false_m`` are the metres the run's own odometry
+    travelled by the end of the first commit / oracle / first wrong COMMIT window, for every
+    policy (the particle filter's rows included), from the run's start across a restart; the
+    tables' medians are over the runs of ``median_delay``."""
+    root, tables, col = small
+    runs = read_runs([root / "one"])
+    wins = [w for b in col.batches for w in b.windows]
+    metres = [_metres_from_odometry(r, w) for r, w in zip(col.recordings, wins, strict=True)]
+    restarted = [len(np.unique(w.segments)) > 1 for w in wins]
+    assert any(restarted), "no restart run splits its odometry: the restart case is untested"
+    for r, m in enumerate(metres):
+        assert np.all(np.diff(m) > 0)  # each window ends further along
+        if not restarted[r]:  # windows are cut every 2 m of travel, d_s = 6 m long
+            assert np.all(m >= 6.0 + 2.0 * np.arange(len(m)) - 1e-6)
+    # every window of every policy (the filter's too), a restart run's after its split included
+    w = pd.read_csv(root / "one" / "windows.csv.gz")
+    assert {"ours", "mcl"} <= set(w["policy"]) and w["metres"].notna().all()
+    want = [metres[r][k - 1] for r, k in zip(w["run"], w["k"], strict=True)]
+    np.testing.assert_allclose(w["metres"], want, rtol=1e-3)
+    com = runs[runs["committed"]]
+    assert set(com["policy"]) >= {"mcl"}
+    for row in runs.itertuples():
+        m = metres[row.run]
+        for col_m, k in (("commit_m", row.k), ("oracle_m", row.oracle_k)):
+            got = getattr(row, col_m)
+            if np.isfinite(k):
+                assert got == pytest.approx(m[int(k) - 1], rel=1e-5), (row.policy, col_m, k)
+            else:
+                assert np.isnan(got), (row.policy, col_m)
+        assert np.isnan(row.commit_m) == (not row.committed)
+        assert np.isnan(row.false_m) == (not row.any_false)
+        if row.any_false:
+            assert row.false_m >= row.commit_m - 1e-9
+        if row.committed and np.isfinite(row.oracle_k) and row.k >= row.oracle_k:
+            assert row.oracle_m <= row.commit_m + 1e-9
+        if row.correct_run and row.identifiable:
+            assert row.delay_m == pytest.approx(row.commit_m - row.oracle_m, abs=1e-4)
+            assert np.sign(row.delay_m) == np.sign(row.delay)
+        else:
+            assert np.isnan(row.delay_m)
+    fam = tables["families"].set_index(["family", "policy"])
+    nom = runs[(runs["fault"] == "") & (runs["set"] == 1)]
+    for pol, g in nom.groupby("policy"):
+        ok = g[g["correct_run"] & g["identifiable"]]
+        for c, src in (("median_commit_m", "commit_m"), ("median_delay_m", "delay_m")):
+            want = ok[src].median() if len(ok) else np.nan
+            assert fam.loc[("all", pol), c] == pytest.approx(want, nan_ok=True), (pol, c)
+    assert {"median_commit_m", "median_delay_m"} <= set(tables["overall"].columns)
+    assert {"median_commit_m", "median_delay_m"} <= set(tables["sources"].columns)
+
+
+def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first_wrong_one():
+    """A hand-made scored table: the metres come from the first COMMIT window, the oracle
+    window and the first wrong COMMIT window; the delay in metres and the tables' medians are
+    over the identifiable runs committed correctly, as ``median_delay``."""
+    from mfcl_jax.bench.report import family_table, run_table
+    from mfcl_jax.score.identifiability import RunLabel
+
+    metres = [6.0, 8.0, 10.5, 12.0, 14.2]
+    states = {  # run: states of windows 1..5 and whether each is right
+        0: ("DEFER DEFER COMMIT COMMIT COMMIT", [1, 1, 1, 1, 1]),  # right at k=3, oracle 2
+        1: ("DEFER COMMIT COMMIT DEFER COMMIT", [1, 1, 1, 1, 0]),  # wrong again at k=5
+        2: ("DEFER DEFER DEFER COMMIT COMMIT", [1, 1, 1, 1, 1]),  # right at k=4, oracle 1
+        3: ("DEFER DEFER DEFER DEFER DEFER", [0, 0, 0, 0, 0]),  # abstains
+    }
+    rows = []
+    for run, (st, ok) in states.items():
+        for k, (s, c) in enumerate(zip(st.split(), ok, strict=True), start=1):
+            rows.append(dict(run=run, policy="ours", set=1, k=k, state=s, correct=bool(c),
+                             err_xy=0.1, err_yaw_deg=1.0, metres=metres[k - 1], family="f",
+                             fault="", source="procedural"))  # fmt: skip
+    lab = [RunLabel(True, o, np.ones(5, bool), 0, None) for o in (2, 2, 1, 3)]
+    t = run_table(pd.DataFrame(rows), lab).set_index("run")
+    assert t["commit_m"].tolist()[:3] == [10.5, 8.0, 12.0] and np.isnan(t.loc[3, "commit_m"])
+    assert t["oracle_m"].tolist() == [8.0, 8.0, 6.0, 10.5]
+    assert np.isnan(t.loc[0, "false_m"]) and t.loc[1, "false_m"] == 14.2
+    assert t.loc[0, "delay_m"] == 2.5 and t.loc[2, "delay_m"] == 6.0
+    assert np.isnan(t.loc[1, "delay_m"]) and np.isnan(t.loc[3, "delay_m"])  # false; abstains
+    fam = family_table(t.reset_index(), ["ours"]).set_index("family")
+    assert fam.loc["all", "median_delay"] == 2.0  # windows 1 and 3
+    assert fam.loc["all", "median_commit_m"] == pytest.approx((10.5 + 12.0) / 2)
+    assert fam.loc["all", "median_delay_m"] == pytest.approx((2.5 + 6.0) / 2)
 
 
 def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
@@ -117,7 +229,7 @@ def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
 def test_merge_of_jobs_gives_the_same_tables(small, tmp_path):
     """A multirun split (here: the nominal runs and the fault axis as two jobs' outputs)
     merged by ``merge`` gives the single run's tables: one code path from ``runs.csv``."""
-    root, tables = small
+    root, tables, _ = small
     runs = read_runs([root / "one"])
     jobs = []
     for name, part in (("a", runs[runs["fault"] == ""]), ("b", runs[runs["fault"] != ""])):
@@ -125,7 +237,7 @@ def test_merge_of_jobs_gives_the_same_tables(small, tmp_path):
         part.to_csv(tmp_path / name / "runs.csv", index=False)
         jobs.append(tmp_path / name)
     merged = merge(jobs, tmp_path / "merged", SMALL["policies"])
-    for name in ("families", "risk_coverage", "faults/restart"):
+    for name in ("families", "sources", "risk_coverage", "faults/restart"):
         a = tables[name].reset_index(drop=True)
         b = merged[name].reset_index(drop=True)
         pd.testing.assert_frame_equal(a, b, check_dtype=False, check_exact=False, rtol=1e-6)

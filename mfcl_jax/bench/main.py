@@ -57,8 +57,9 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     atomic_write(out / "runs.csv", runs.to_csv(index=False, float_format="%.6g"))
     runs = read_runs([out])  # tables come from the file, as in ``merge``: identical tables
     labels = runs.drop_duplicates("name")[
-        ["name", "family", "fault", "level", "identifiable", "oracle_k", "n_alternatives"]
-    ]
+        ["name", "family", "fault", "level", "identifiable", "oracle_k", "n_alternatives",
+         "oracle_m"]
+    ]  # fmt: skip
     atomic_write(out / "labels.csv", labels.to_csv(index=False))
     col.tick("total", time.perf_counter() - t_start)
     tm = pd.DataFrame([dict(stage=k, seconds=round(v, 2)) for k, v in col.timings.items()])
@@ -89,7 +90,7 @@ def nominal_level_rows(runs: pd.DataFrame, cfg: BenchmarkConfig) -> pd.DataFrame
 
 WINDOW_COLS = ["run", "name", "family", "fault", "level", "policy", "k", "state", "kind",
                "reason", "B1", "B2", "margin", "n_groups", "x", "y", "yaw_deg", "err_xy",
-               "err_yaw_deg", "correct", "ident_k"]  # fmt: skip
+               "err_yaw_deg", "correct", "ident_k", "metres"]  # fmt: skip
 
 
 def _write_windows(scored: pd.DataFrame, labels, out: Path) -> None:
@@ -148,6 +149,9 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
         write_table(df, out / Path(name).parent, Path(name).name)
     if draw:
         figures.save(figures.risk_coverage_figure(tabs["risk_coverage"]), out / "risk_coverage.png")
+        if "commit_m" in runs:
+            fig = figures.commit_distance_figure(runs, pols)
+            figures.save(fig, out / "commit_distance.png")
         for axis in FAULTS:
             if f"faults/{axis}" in tabs:
                 fig = figures.fault_figure(tabs[f"faults/{axis}"], axis)

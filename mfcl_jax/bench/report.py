@@ -9,6 +9,13 @@ Per run and policy (threshold set ``DEFAULT_SET`` unless stated):
 * coverage: correct commit runs / identifiable runs; abstention: runs without a commit /
   non-identifiable runs; rates carry Wilson 95 % intervals;
 * delay: first commit window minus the oracle window (identifiable runs committed correctly);
+* distance (``commit_m``, ``oracle_m``, ``false_m``, ``delay_m``): metres travelled by the end
+  of the first commit window, of the oracle window and of the first wrong COMMIT window, by the
+  run's own input odometry over its keyframes from its first keyframe (``run.window_metres``:
+  the distance the windows are cut by; an odometry quantity). A run split by an odometry
+  restart counts from the run's start, the jump itself counting nothing. ``delay_m`` is
+  ``commit_m - oracle_m`` for the runs ``delay`` is given for; the tables' ``median_commit_m``
+  and ``median_delay_m`` are medians over the same runs as ``median_delay``;
 * commit margins (``commit_margins``): how close the COMMIT windows came to the line between
   a right and a false commit (``CORRECT_XY`` m, ``CORRECT_YAW_DEG``), per family. Zero false
   commits on the benchmark say little about a building we have never seen if the right ones
@@ -55,9 +62,36 @@ def run_table(scored: pd.DataFrame, labels) -> pd.DataFrame:
     )
     out = fc.merge(meta, on="run", how="left").merge(lab, on="run", how="left")
     out["correct_run"] = out["committed"] & ~out["any_false"]
-    out["delay"] = np.where(out["correct_run"] & out["identifiable"], out["k"] - out["oracle_k"],
-                            np.nan)  # fmt: skip
+    ok = out["correct_run"] & out["identifiable"]
+    out["delay"] = np.where(ok, out["k"] - out["oracle_k"], np.nan)
+    if "metres" in scored:
+        at = _metres_lookup(scored)
+        com = scored[scored["state"] == "COMMIT"]
+        wrong = com[~com["correct"].astype(bool)].groupby(list(keys))["k"].min()
+        false_k = wrong.reindex(pd.MultiIndex.from_frame(out[list(keys)])).to_numpy()
+        out["commit_m"] = at(out["run"], out["k"])
+        out["oracle_m"] = at(out["run"], out["oracle_k"])
+        out["false_m"] = at(out["run"], false_k)
+        out["delay_m"] = np.where(ok, out["commit_m"] - out["oracle_m"], np.nan)
     return out
+
+
+def _metres_lookup(scored: pd.DataFrame):
+    """``at(run, k)``: the ``metres`` column of window ``k`` of ``run`` (NaN where ``k`` is)."""
+    w = scored.drop_duplicates(["run", "k"])
+    key = zip(w["run"].astype(int), w["k"].astype(int), strict=True)
+    table = dict(zip(key, w["metres"], strict=True))
+
+    def at(run, k) -> np.ndarray:
+        return np.asarray(
+            [
+                table.get((int(r), int(kk)), math.nan) if np.isfinite(kk) else math.nan
+                for r, kk in zip(run, np.asarray(k, np.float64), strict=True)
+            ],
+            np.float64,
+        )
+
+    return at
 
 
 def _rate(k: int, n: int) -> str:
@@ -76,6 +110,11 @@ def _summary(g: pd.DataFrame) -> dict:
     lucky = int((g["correct_run"] & ~ident).sum())
     delay = g.loc[g["correct_run"] & ident, "delay"]
     err = g.loc[g["correct_run"], "err_xy"]
+
+    def median_m(col: str) -> float:  # over the runs of median_delay; NaN in older runs.csv
+        m = g.loc[g["correct_run"] & ident, col].dropna() if col in g else []
+        return float(m.median()) if len(m) else math.nan
+
     return dict(
         runs=n,
         identifiable=int(ident.sum()),
@@ -88,6 +127,8 @@ def _summary(g: pd.DataFrame) -> dict:
         lucky_commits=lucky,
         median_delay=float(delay.median()) if len(delay) else math.nan,
         median_err_m=float(err.median()) if len(err) else math.nan,
+        median_commit_m=median_m("commit_m"),
+        median_delay_m=median_m("delay_m"),
     )
 
 

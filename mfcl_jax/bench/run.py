@@ -24,7 +24,7 @@ from mfcl_jax.bench.config import BenchmarkConfig, validate
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.sources import Recording, ScanSequence
 
-__all__ = ["KNOB_SETS", "DEFAULT_SET", "Collected", "collect", "decide_and_score"]
+__all__ = ["KNOB_SETS", "DEFAULT_SET", "Collected", "collect", "decide_and_score", "window_metres"]
 
 # Threshold sets of the risk-coverage sweep: every policy reads its own knob from the set
 # (ours and its ablations: the floors b_min / delta_min; confidence: its ratio; support: its
@@ -195,11 +195,37 @@ def collect(cfg: BenchmarkConfig, groups, mcl_runner=None) -> Collected:
     return col
 
 
+def window_metres(odometry, w) -> np.ndarray:
+    """``(K,)`` metres travelled by the end of each window of ``w`` (``Windows``): the path
+    length of the input odometry ``odometry (T, 3)`` over the run's keyframes, from its first
+    keyframe to the window's last one; the distance the windows are cut by, an odometry
+    quantity (no ground truth). Across an odometry jump (a restart) it runs on from the run's
+    start: the jump's step counts nothing."""
+    raw = np.asarray(odometry, np.float64)[np.asarray(w.keyframes)]
+    if len(w) == 0:
+        return np.zeros(0)
+    return W.travelled(raw, w.segments)[np.asarray(w.bounds)[:, 1]]
+
+
+def _metres_at(recordings, batch, run, k) -> np.ndarray:
+    """Metres travelled (``window_metres``) at window ``k`` (1-based) of each row's ``run``."""
+    per_run = [window_metres(r.seq.odometry, w) for r, w in zip(recordings, batch.windows,
+                                                                strict=True)]  # fmt: skip
+    K = max([len(m) for m in per_run] + [1])
+    M = np.full((len(per_run), K + 1), np.nan)
+    for i, m in enumerate(per_run):
+        M[i, 1 : len(m) + 1] = m
+    k = np.asarray(k, np.int64)
+    return M[np.asarray(run, np.int64), np.where((k >= 1) & (k <= K), k, 0)]
+
+
 def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame:
     """Every policy of ``ours`` (+ baselines) at every window and threshold set, scored.
 
     Returns:
-        One row per run x window x set x policy with the scorer's columns and the run's meta.
+        One row per run x window x set x policy with the scorer's columns, ``metres`` (the
+        odometric distance travelled by the window's end, ``window_metres``: the same for every
+        policy, the particle filter's rows included) and the run's meta.
     """
     from mfcl_jax.decision.runs import decide
     from mfcl_jax.frontend.candidates import Candidates
@@ -222,6 +248,7 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     fault = np.asarray([bool(r.meta.get("fault", "")) for r in col.recordings])
     frame = frame[~fault[frame["run"].to_numpy()] | (frame["set"].to_numpy() == DEFAULT_SET)]
     scored = score_batch(frame, batch, col.recordings, rooms=False)
+    scored["metres"] = _metres_at(col.recordings, batch, scored["run"], scored["k"])
     col.tick("score", time.perf_counter() - t0 - tm["compile_s"] - tm["run_s"])
     meta = pd.DataFrame([dict(run=i, name=r.name, **r.meta) for i, r in enumerate(col.recordings)])
     return scored.merge(meta, on="run", how="left")

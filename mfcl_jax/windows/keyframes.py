@@ -39,10 +39,18 @@ def keyframes(odometry, spacing: float = 0.20, turn_deg: float = 20.0) -> np.nda
     return np.asarray(keep, int)
 
 
-def travelled(poses) -> np.ndarray:
-    """Cumulative planar distance along ``poses (T, 3)``; ``(T,)`` starting at 0."""
+def travelled(poses, segments=None) -> np.ndarray:
+    """Cumulative planar distance along ``poses (T, 3)``; ``(T,)`` starting at 0.
+
+    ``segments (T,)`` (``odometry_segments``): the steps between two segments (an odometry
+    jump, not a move) count nothing, so the distance runs on from the run's start across them.
+    """
     xy = np.asarray(poses, np.float64)[:, :2]
-    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    if segments is not None:
+        seg = np.asarray(segments).reshape(-1)
+        step = np.where(seg[1:] == seg[:-1], step, 0.0)
+    return np.concatenate([[0.0], np.cumsum(step)])
 
 
 # An odometry restart (the frame re-zeroed mid-run) shows as a step between consecutive

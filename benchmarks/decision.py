@@ -10,7 +10,7 @@ Run times are medians of ``--reps`` further calls: ``median_s`` the compiled cal
 ``median_cpu_s`` the whole ``decide_runs`` call (maps, padding, transfers) as wall time and
 process CPU time (all threads; steadier than wall time on a shared machine), with the
 1-minute load average next to them. ``V`` is the lanes per threshold set (every variant of
-``OURS_VARIANTS`` and the baselines). Cases: ``one_run`` and ``batch`` (S=4 threshold sets,
+``COUNT_VARIANTS`` and the baselines). Cases: ``one_run`` and ``batch`` (S=4 threshold sets,
 J=64) and ``study`` (the study's sweep: 120 runs, S=1, J=32). Writes
 ``results/bench_decision.csv``.
 Usage: ``python benchmarks/decision.py [--runs 100] [--cases one_run,batch,study]``.
@@ -32,8 +32,9 @@ import pandas as pd
 from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
-from mfcl_jax.decision import OURS_VARIANTS, DecisionParams, make_lanes, run_inputs
+from mfcl_jax.decision import DecisionParams, make_lanes, run_inputs
 from mfcl_jax.decision import runs as decision_runs
+from mfcl_jax.decision.lanes import COUNT_VARIANTS
 from mfcl_jax.frontend.candidates import Candidates
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
@@ -94,7 +95,7 @@ def synth_batch(fp, R, K, J, T, seed=0):
 def bench(name, fp, batch, cands, sets, reps, chunk):
     """Compile, then ``reps`` timed calls of ``decide_runs`` on ``batch``."""
     primary_set = DEFAULT_SET if len(sets) > DEFAULT_SET else 0
-    p, lanes, spec = make_lanes(sets, tuple(OURS_VARIANTS), True, "ours", primary_set)
+    p, lanes, spec = make_lanes(sets, COUNT_VARIANTS, True, "ours", primary_set)
     inputs = run_inputs(batch, cands)
 
     def call():

@@ -9,7 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import OURS_VARIANTS, Caps, decision_maps, make_lanes
+from mfcl_jax.decision import Caps, decision_maps, make_lanes
+from mfcl_jax.decision.lanes import COUNT_VARIANTS
 from mfcl_jax.decision.layer import WindowEvidence
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.runs import scan_runs
@@ -64,11 +65,11 @@ def _compiled():
     return jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
 
 
-def lanes_of(params=None, ours=tuple(OURS_VARIANTS), baselines=True):
+def lanes_of(params=None, ours=COUNT_VARIANTS, baselines=True):
     return make_lanes(params, ours, baselines, primary=None)
 
 
-def evaluate_runs(runs, maps, params=None, ours=tuple(OURS_VARIANTS), baselines=True):
+def evaluate_runs(runs, maps, params=None, ours=COUNT_VARIANTS, baselines=True):
     """Every lane's ``Decision`` at every window: host leaves ``(R, K, L, ...)``, and the
     lane names."""
     p, lanes, spec = lanes_of(params, ours, baselines)

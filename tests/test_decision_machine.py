@@ -57,6 +57,7 @@ def _raw(states, anchors):
         searched=jnp.zeros(k, bool),
         n_rejected=i,
         dropped=i,
+        llr=z,
     )
 
 

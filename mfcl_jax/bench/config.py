@@ -28,6 +28,7 @@ __all__ = [
     "LOGS",
     "FAULTS",
     "POLICIES",
+    "DEFAULT_POLICIES",
     "validate",
 ]
 
@@ -52,6 +53,10 @@ FAULTS = {
 }
 POLICIES = (
     "ours",
+    "ours_unique",
+    "ours_unique_a2",
+    "ours_unique_a4",
+    "ours_unique_a6",
     "paper",
     "no_probe",
     "consensus_only",
@@ -63,6 +68,8 @@ POLICIES = (
     "gate_only",
     "mcl",
 )
+# run unless ``policies=`` says otherwise (the uniqueness lanes are an experiment: ``uniqueness``)
+DEFAULT_POLICIES = tuple(p for p in POLICIES if not p.startswith("ours_unique"))
 
 
 class BenchmarkError(ValueError):
@@ -104,7 +111,7 @@ class BenchmarkConfig:
     ifc_walks: int = 2
     log_windows: int = 4
     log_length: float = 45.0
-    policies: list[str] = field(default_factory=lambda: list(POLICIES))
+    policies: list[str] = field(default_factory=lambda: list(DEFAULT_POLICIES))
     faults: list[str] = field(default_factory=lambda: ["all"])
     fault_seeds: int = 1
     d_s: float = 6.0

@@ -62,7 +62,7 @@ def risk_coverage_figure(rc: pd.DataFrame, title: str = ""):
 
 
 # The policies of the distance figure (those present): our layer, the paper's, the filter.
-DISTANCE_POLICIES = ("ours", "paper", "mcl")
+DISTANCE_POLICIES = ("ours", "ours_unique", "paper", "mcl")
 
 
 def _cumulative(ax, metres, n: int, x_end: float, label: str, style: dict) -> None:

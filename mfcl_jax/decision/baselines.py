@@ -106,6 +106,7 @@ def _decision(state, anchor, reason, max_score, b1=0, b2=0, n=0, c=0.0, gate=Fal
         searched=jnp.zeros(shape, bool),
         n_rejected=zi,
         dropped=zi,
+        llr=zf + jnp.nan,
     )
 
 

@@ -75,6 +75,7 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
             "certified": d.certified.ravel(),
             "searched": d.searched.ravel(),
             "n_rejected_nan": d.n_rejected.ravel(),
+            "llr": d.llr.ravel(),
         }
     )
     if window_mask is not None:

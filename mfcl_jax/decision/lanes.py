@@ -13,7 +13,11 @@ of them from one shared history:
 * ``ours_b2_d1``, ``ours_b4_d2``: commit floors ``(b_min, delta_min)`` = (2, 1), (4, 2)
   (``ours`` is (3, 2));
 * ``ours_strict``: ``ours`` with the room-congruence threshold of the alias probe at 0.98
-  (the paper's exact congruence) instead of 0.8 (``maps.MIN_CONGRUENT_IOU``).
+  (the paper's exact congruence) instead of 0.8 (``maps.MIN_CONGRUENT_IOU``);
+* ``ours_unique``: ``ours`` that also commits, whatever the count of windows, where the path
+  seen so far is explained by one placement and by no other (``uniqueness``, error rate
+  ``alpha = 1e-3``); ``ours_unique_a2``, ``_a4``, ``_a6``: the same at ``alpha`` = 1e-2,
+  1e-4, 1e-6 (the test runs once per window for all of them).
 
 A lane reads one *mode* of the shared core: the gate on or off and one symmetry set of the
 maps. The baselines (``baselines``) are lanes too, one per threshold set.
@@ -28,19 +32,34 @@ import numpy as np
 
 from mfcl_jax.decision.params import DecisionParams, check_sets
 
-__all__ = ["OURS_VARIANTS", "BASELINES", "STRICT_IOU", "Lanes", "LaneSpec", "make_lanes"]
+__all__ = [
+    "OURS_VARIANTS",
+    "COUNT_VARIANTS",
+    "BASELINES",
+    "STRICT_IOU",
+    "Lanes",
+    "LaneSpec",
+    "make_lanes",
+]
 
-# name: (use_gate, use_probe, use_cert, b_min, delta_min, symmetry set); floors < 0: from
-# DecisionParams; symmetry set 1 is the strict congruence threshold.
+# name: (use_gate, use_probe, use_cert, b_min, delta_min, symmetry set, uniqueness alpha);
+# floors < 0: from DecisionParams; symmetry set 1 is the strict congruence threshold; alpha 0:
+# no uniqueness test.
 OURS_VARIANTS = {
-    "ours": (True, True, True, -1.0, -1.0, 0),
-    "paper": (True, True, False, -1.0, -1.0, 0),
-    "no_probe": (True, False, False, -1.0, -1.0, 0),
-    "consensus_only": (False, False, False, -1.0, -1.0, 0),
-    "ours_b2_d1": (True, True, True, 2.0, 1.0, 0),
-    "ours_b4_d2": (True, True, True, 4.0, 2.0, 0),
-    "ours_strict": (True, True, True, -1.0, -1.0, 1),
+    "ours": (True, True, True, -1.0, -1.0, 0, 0.0),
+    "paper": (True, True, False, -1.0, -1.0, 0, 0.0),
+    "no_probe": (True, False, False, -1.0, -1.0, 0, 0.0),
+    "consensus_only": (False, False, False, -1.0, -1.0, 0, 0.0),
+    "ours_b2_d1": (True, True, True, 2.0, 1.0, 0, 0.0),
+    "ours_b4_d2": (True, True, True, 4.0, 2.0, 0, 0.0),
+    "ours_strict": (True, True, True, -1.0, -1.0, 1, 0.0),
+    "ours_unique": (True, True, True, -1.0, -1.0, 0, 1e-3),
+    "ours_unique_a2": (True, True, True, -1.0, -1.0, 0, 1e-2),
+    "ours_unique_a4": (True, True, True, -1.0, -1.0, 0, 1e-4),
+    "ours_unique_a6": (True, True, True, -1.0, -1.0, 0, 1e-6),
 }
+# the variants the study and the tests decide by default: all but the uniqueness lanes
+COUNT_VARIANTS = tuple(n for n, v in OURS_VARIANTS.items() if v[6] == 0)
 BASELINES = ("single_shot", "support", "confidence", "gate_only")
 STRICT_IOU = 0.98  # "exact copy up to 2 % modelling noise"
 
@@ -60,6 +79,8 @@ class Lanes:
     delta_min: jax.Array
     cert_margin: jax.Array
     mode: jax.Array
+    use_unique: jax.Array
+    unique_llr: jax.Array  # log(1 / alpha) of the uniqueness test (0 where unused)
     confidence_ratio: jax.Array  # (S,) baselines
     support_ratio: jax.Array  # (S,)
 
@@ -82,6 +103,7 @@ class LaneSpec:
     min_iou: tuple[float, ...]  # symmetry thresholds, in set order
     n_sets: int  # threshold sets
     baselines: bool
+    unique: bool = False  # some lane runs the uniqueness test
 
     @property
     def n_ours(self) -> int:
@@ -117,11 +139,13 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
     cols, names, lane_sets = [], [], []
     for i, s in enumerate(sets):
         for n in ours:
-            ug, up, uc, bm, dm, q = OURS_VARIANTS[n]
+            ug, up, uc, bm, dm, q, alpha = OURS_VARIANTS[n]
+            uu = alpha > 0
             bm = float(s.b_min) if bm < 0 else bm
             dm = float(s.delta_min) if dm < 0 else dm
             mode = modes.index((ug, syms.index(q)))
-            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode))
+            thr = float(np.log(1.0 / alpha)) if uu else 0.0
+            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode, uu, thr))
             names.append(n)
             lane_sets.append(i)
     c = list(zip(*cols, strict=True))
@@ -134,6 +158,8 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
         delta_min=np.asarray(c[4], f32),
         cert_margin=np.asarray(c[5], f32),
         mode=np.asarray(c[6], np.int32),
+        use_unique=np.asarray(c[7], bool),
+        unique_llr=np.asarray(c[8], f32),
         confidence_ratio=np.asarray([float(s.confidence_ratio) for s in sets], f32),
         support_ratio=np.asarray([float(s.support_ratio) for s in sets], f32),
     )
@@ -143,5 +169,7 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
     lane = -1
     if primary is not None and primary in ours and OURS_VARIANTS[primary][2]:
         lane = primary_set * len(ours) + list(ours).index(primary)
-    spec = LaneSpec(tuple(names), tuple(lane_sets), modes, lane, min_iou, len(sets), baselines)
+    unique = any(OURS_VARIANTS[n][6] > 0 for n in ours)
+    spec = LaneSpec(tuple(names), tuple(lane_sets), modes, lane, min_iou, len(sets), baselines,
+                    unique)  # fmt: skip
     return sets[0], lanes_, spec

@@ -66,6 +66,9 @@ class Decision:
     searched: jax.Array  # bool: the rival search ran at this window
     n_rejected: jax.Array  # int32 non-finite candidates rejected so far
     dropped: jax.Array  # int32 windows that have left the layer's history (its capacity)
+    # the uniqueness test's log-likelihood ratio of the path, best placement against the best
+    # other one (``uniqueness``; NaN where it did not run, +inf with no other placement)
+    llr: jax.Array
 
 
 jax.tree_util.register_dataclass(

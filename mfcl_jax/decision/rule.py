@@ -261,4 +261,5 @@ def finish(c: Core, cert: certify.CertStats, sym, p, use_gate, use_probe, use_ce
         searched=jnp.bool_(False),
         n_rejected=zero_i,
         dropped=zero_i,
+        llr=jnp.float32(jnp.nan),
     )

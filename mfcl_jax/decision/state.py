@@ -90,6 +90,7 @@ class LayerState:
     rivals: jax.Array  # (E, 3) placements of the path found by the rival search
     rivals_ok: jax.Array  # (E,) bool
     searches: jax.Array  # () int32
+    u_tests: jax.Array  # () int32 uniqueness tests in this odometry segment
     n_rejected: jax.Array  # () int32 non-finite candidates rejected so far
 
 

@@ -11,10 +11,10 @@ explains what I have seen"; this module checks that statement, with a stated err
 2. each is fitted to the path under the observation model (``path_llr.refine``), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
    5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``;
-3. the statement holds when ``llr >= log(1 / alpha)``: under the model, a wrong placement
-   reaches that margin against the truth with probability at most ``alpha`` (Wald's bound
-   for one sequential test; with a search that covers every placement it is the bound for
-   the best wrong one).
+3. the statement holds when ``llr >= log(1 / alpha)`` (a lane's knob, ``lanes``): under the
+   model, a wrong placement reaches that margin against the truth with probability at most
+   ``alpha`` (Wald's bound for one sequential test; with a search that covers every
+   placement it is the bound for the best wrong one).
 
 Vetoes (the layer's checks, kept): ``A*`` must pass the feasibility gate, agree with the
 newest window's champion, and not disagree with a consensus winner of two or more windows.
@@ -44,17 +44,12 @@ __all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "skipped
 class UniqueParams:
     """Settings of the uniqueness test (static; one setting for every building)."""
 
-    alpha: float = 1e-3  # error rate of the sequential test
     near_xy: float = 1.0  # m: placements this close to A* are the same answer
     near_deg: float = 5.0
     n_search: int = 8  # placements kept from the global search
     n_newest: int = 3  # best registrations of the newest window
     max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
     llr: LLRParams = LLRParams()
-
-    @property
-    def threshold(self) -> float:
-        return math.log(1.0 / self.alpha)
 
 
 DEFAULT_UNIQUE = UniqueParams()
@@ -67,7 +62,7 @@ class UniqStats:
     anchor: jax.Array  # (3,) A*
     competitor: jax.Array  # (3,) the best candidate outside A*'s neighbourhood
     llr: jax.Array  # () L(A*) - L(competitor); +inf without a competitor
-    holds: jax.Array  # () bool llr >= log(1 / alpha) and no veto
+    vetoed: jax.Array  # () bool a veto holds (gate, champion, consensus winner)
     c_gate: jax.Array  # () gate consistency of A*
     ran: jax.Array  # () bool
 
@@ -122,5 +117,5 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     agrees = champion_ok & (cxy <= delta_xy) & (cth <= delta_theta)
     txy, tth = se2.distance_pair(t_star, best)
     contradicted = (winner_b1 >= 2) & ((txy > delta_xy) | (tth > delta_theta))
-    holds = (llr >= u.threshold) & (c_gate >= tau_c) & agrees & ~contradicted & jnp.any(ok)
-    return UniqStats(best, A[j], llr, holds, c_gate, jnp.bool_(True))
+    vetoed = (c_gate < tau_c) | ~agrees | contradicted | ~jnp.any(ok)
+    return UniqStats(best, A[j], llr, vetoed, c_gate, jnp.bool_(True))

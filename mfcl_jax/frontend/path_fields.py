@@ -101,7 +101,7 @@ def sample_field(field, origin, res, xy, fill):
 
     def at(iv, iu):
         ok = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
-        val = field.reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
+        val = jnp.asarray(field).reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
         return jnp.where(ok, val, fill)
 
     return (

@@ -97,8 +97,8 @@ def path_evidence(ev_points, ev_origins, ev_mask, X, length, p: LLRParams = LLRP
     """``PathEvidence`` of the windows' evidence samples ``(C, E, 2)`` (window frames; ``X``
     ``(C, 3)`` the windows' odometry poses; ``ev_mask`` false outside the path) and the
     path's ``length`` (m)."""
-    q = se2.apply(X[:, None, :], ev_points).reshape(-1, 2)
-    o = se2.apply(X[:, None, :], ev_origins).reshape(-1, 2)
+    q = se2.apply(X, ev_points).reshape(-1, 2)
+    o = se2.apply(X, ev_origins).reshape(-1, 2)
     m = ev_mask.reshape(-1)
     c = jnp.round(o * 100.0).astype(jnp.int32)
     code = c[:, 0] * 100_003 + c[:, 1]

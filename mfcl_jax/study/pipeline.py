@@ -19,7 +19,7 @@ import pandas as pd
 from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.decision import runs as decision_runs
-from mfcl_jax.decision.lanes import OURS_VARIANTS
+from mfcl_jax.decision.lanes import COUNT_VARIANTS, OURS_VARIANTS
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.frontend.driver import FrontEnd
@@ -147,7 +147,7 @@ def decide(
     label="decision",
     progress=True,
     batch=None,
-    ours=tuple(OURS_VARIANTS),
+    ours=COUNT_VARIANTS,
 ) -> pd.DataFrame:
     """Every lane's decision (``ours`` and the baselines) at every window of every run, in
     one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset)."""

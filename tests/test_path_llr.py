@@ -1,0 +1,65 @@
+"""The path's log-likelihood (``frontend.path_llr``): evidence counted once per scan and per
+metre, the truth explaining the path better than a shifted or turned placement, and a copy of
+the building explaining it as well as the truth."""
+
+import numpy as np
+import pytest
+from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
+
+from mfcl_jax import se2
+from mfcl_jax.decision import rivals
+from mfcl_jax.frontend import path_llr
+
+
+@pytest.fixture(scope="module")
+def scene():
+    fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))  # rooms of different lengths
+    fields = rivals.rival_fields(fp)
+    traj = walk([[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5]])
+    ks = np.linspace(0, len(traj) - 1, 8).round().astype(int)
+    pts, org, msk = evidence_at(fp, traj[ks])
+    return fp, fields, traj, ks, pts, org, msk
+
+
+def _evidence(scene, windows):
+    fp, fields, traj, ks, pts, org, msk = scene
+    # one "window" per scan here; the odometry frame is the plan frame (anchor = identity)
+    X = traj[ks][windows]
+    length = float(np.sum(np.hypot(*np.diff(traj[:, :2], axis=0).T)))
+    return path_llr.path_evidence(pts[windows], org[windows], msk[windows], X, length)
+
+
+def test_a_scan_seen_by_two_windows_counts_once(scene):
+    once = _evidence(scene, [0, 1, 2, 3])
+    twice = _evidence(scene, [0, 1, 1, 2, 3])  # window 1's scan again, as overlapping windows do
+    assert int(once.n_scans) == int(twice.n_scans) == 4
+    np.testing.assert_allclose(float(np.sum(twice.pw)), float(np.sum(once.pw)), rtol=1e-5)
+    # each scan's returns weigh metres-per-scan in all (one observation per metre)
+    np.testing.assert_allclose(float(np.sum(once.pw)), float(once.length), rtol=1e-5)
+
+
+def test_the_true_placement_explains_the_path_best(scene):
+    fields = scene[1]
+    pe = _evidence(scene, list(range(8)))
+    truth = np.zeros(3, np.float32)
+    L0 = float(path_llr.log_likelihood(truth, pe, fields))
+    for wrong in ([0.6, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, np.radians(4.0)]):
+        Lw = float(path_llr.log_likelihood(np.asarray(wrong, np.float32), pe, fields))
+        assert L0 - Lw > 3.0, (wrong, L0, Lw)
+    a, L = path_llr.refine(np.asarray([0.08, -0.05, 0.01], np.float32), pe, fields)
+    assert float(L) >= L0 - 1e-3 and np.hypot(*np.asarray(a)[:2]) < 0.05
+
+
+def test_a_congruent_copy_explains_a_walk_inside_one_room_as_well_as_the_truth():
+    fp = row_of_rooms()  # four congruent rooms at PITCH, doors at the same place
+    fields = rivals.rival_fields(fp)
+    traj = walk([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0]])  # stays inside room 2 of 4 (x 7.3 - 14.6)
+    traj[:, 0] += PITCH
+    ks = np.linspace(0, len(traj) - 1, 6).round().astype(int)
+    pts, org, msk = evidence_at(fp, traj[ks])
+    length = float(np.sum(np.hypot(*np.diff(traj[:, :2], axis=0).T)))
+    pe = path_llr.path_evidence(pts, org, msk, traj[ks], length)
+    L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
+    shifted = se2.compose(np.asarray([PITCH, 0.0, 0.0]), np.zeros(3))
+    L1 = float(path_llr.log_likelihood(np.asarray(shifted, np.float32), pe, fields))
+    assert abs(L0 - L1) < 0.5, (L0, L1)

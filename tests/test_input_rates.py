@@ -363,3 +363,20 @@ def test_a_dataset_written_with_100hz_odometry_loads_like_one_pose_per_scan(tmp_
         write_dataset(tmp_path / "bad", _plan(), times, _scans(len(times)), _truth(times),
                       odom_times=t100)  # fmt: skip
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_carmen_log_against_a_plan_of_another_scale_is_refused(tmp_path, capsys):
+    """``mfcl localize --carmen`` checks the plan's scale against the scans' as a dataset
+    folder does (here a plan far smaller than what the scans see)."""
+    from mfcl_jax.cli import main
+    from mfcl_jax.floorplan.geojson import save_geojson
+
+    log = tmp_path / "g.log"
+    log.write_text("".join(_flaser(1.0 + i, [2.0, 3.0, 4.0] * 60, x=0.1 * i) for i in range(6)))
+    plan = save_geojson(_plan(0.01), tmp_path / "plan_small.geojson")  # 8 cm: scans see past it
+    out = tmp_path / "d.jsonl"
+    rc = main(["localize", "--carmen", str(log), "--floorplan", str(plan), "--out", str(out),
+               "--quiet"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "disagree in scale" in err and str(plan) in err, err
+    assert not out.exists()

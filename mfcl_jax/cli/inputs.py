@@ -143,8 +143,20 @@ def load_input(args, folders=()):
         raise DataError(f"{src}: a {kind} has no floor plan; pass --floorplan F")
     if args.bag is not None:
         seq, notes = _load_bag(args, planar)
-        return fp, seq, notes
-    return (fp, *_load_carmen(args))
+    else:
+        seq, notes = _load_carmen(args)
+    _check_scale(fp, seq, args.floorplan, src)
+    return fp, seq, notes
+
+
+def _check_scale(fp, seq, plan, src) -> None:
+    """A plan and scans whose scales disagree are refused for bags and CARMEN logs too, as
+    for dataset folders (``io.units``)."""
+    from mfcl_jax.io.units import check_metres, check_plan_scale
+
+    names = [f"{src} scan at t={t:.9f}" for t in seq.times]
+    median = check_metres(list(seq.scans), names, str(src))
+    check_plan_scale(fp.bounds, median, str(plan), str(src))
 
 
 def mount_flags(args):

@@ -17,6 +17,7 @@ from mfcl_jax.bench.config import FAULTS  # noqa: E402
 __all__ = [
     "risk_coverage_figure",
     "commit_distance_figure",
+    "risk_distance_figure",
     "fault_figure",
     "save",
     "DISTANCE_POLICIES",
@@ -34,6 +35,10 @@ STYLE = {
     "confidence": dict(color="tab:purple", marker="P"),
     "gate_only": dict(color="tab:brown", marker="X"),
     "mcl": dict(color="tab:blue", marker="*", lw=2.0),
+    "ours_unique": dict(color="tab:pink", marker="o", ls="-."),
+    "ours_unique_a2": dict(color="tab:pink", marker="<", ls=":"),
+    "ours_unique_a4": dict(color="tab:pink", marker=">", ls=":"),
+    "ours_unique_a6": dict(color="tab:pink", marker="^", ls=":"),
 }
 
 
@@ -108,6 +113,30 @@ def commit_distance_figure(runs: pd.DataFrame, policies=DISTANCE_POLICIES):
         a.set_xlim(left=0.0)
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
+    return fig
+
+
+def risk_distance_figure(overall: pd.DataFrame):
+    """Risk against distance, one point per policy of the ``overall`` table (nominal runs,
+    default thresholds): the false-commit rate (y) against the median metres travelled to the
+    first correct commit (x), coverage in the legend. The price of committing earlier reads as
+    a move up and to the left."""
+    fig, ax = plt.subplots(figsize=(7.5, 5.0))
+    for _, r in overall.iterrows():
+        if not np.isfinite(r["median_commit_m"]):
+            continue
+        st = {k: v for k, v in STYLE.get(r["policy"], {}).items() if k in ("color", "marker")}
+        rate = r["n_false"] / max(r["runs"], 1)
+        cov = r["n_covered"] / max(r["identifiable"], 1)
+        ax.plot(r["median_commit_m"], rate, ls="none", ms=8, alpha=0.8,
+                label=f"{r['policy']} (coverage {cov:.0%})", **(st or {"marker": "o"}))  # fmt: skip
+    ax.set_xlabel("median metres travelled to the first correct commit")
+    ax.set_ylabel("risk: runs with a false commit / runs")
+    ax.set_ylim(bottom=-0.01)
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    ax.set_title("risk against distance (nominal runs, default thresholds)", fontsize=10)
     return fig
 
 

@@ -152,6 +152,8 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
         if "commit_m" in runs:
             fig = figures.commit_distance_figure(runs, pols)
             figures.save(fig, out / "commit_distance.png")
+            fig = figures.risk_distance_figure(tabs["overall"])
+            figures.save(fig, out / "risk_distance.png")
         for axis in FAULTS:
             if f"faults/{axis}" in tabs:
                 fig = figures.fault_figure(tabs[f"faults/{axis}"], axis)

@@ -94,6 +94,7 @@ def sample_field(field, origin, res, xy, fill):
     ``xy (*, 2)``; neighbours off the grid read ``fill``."""
     u = (xy[..., 0] - origin[0]) / res - 0.5
     v = (xy[..., 1] - origin[1]) / res - 0.5
+    field = jnp.asarray(field)
     h, w = field.shape
     u0, v0 = jnp.floor(u), jnp.floor(v)
     fu, fv = u - u0, v - v0
@@ -101,7 +102,7 @@ def sample_field(field, origin, res, xy, fill):
 
     def at(iv, iu):
         ok = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
-        val = jnp.asarray(field).reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
+        val = field.reshape(-1).at[jnp.where(ok, iv * w + iu, 0)].get(mode="promise_in_bounds")
         return jnp.where(ok, val, fill)
 
     return (

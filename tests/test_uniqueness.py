@@ -1,0 +1,85 @@
+"""The uniqueness lane (``decision.uniqueness`` inside ``layer.update``): it commits to the one
+placement that explains the path as soon as the test holds, earlier than the count of windows
+where the building allows it, and never where a congruent copy explains the path as well."""
+
+from functools import cache
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mfcl_jax import se2
+from mfcl_jax.decision import decision_maps, layer
+from mfcl_jax.decision.maps import pad_maps
+from mfcl_jax.decision.rivals import image_size, rival_fields
+from tests._layer import CAPS, GRID, evidence_of, lanes_of
+from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, walk
+
+A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
+K, J = 8, 16
+COMMIT = 2
+
+
+def truth_only(k, y):
+    return [(y, 1.0)]
+
+
+def shifted_too(k, y):
+    """The truth and its copy one room along, scored alike (as a congruent row gives)."""
+    return [(y, 1.0), (np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), y)), 1.0)]
+
+
+@cache
+def _step():
+    return jax.jit(layer.update)
+
+
+def _decide(fp, run):
+    """Lanes ``ours`` and ``ours_unique_a2`` (alpha 1e-2) window by window: host leaves
+    ``(K, 2, ...)``."""
+    p, lanes, spec = lanes_of(None, ours=("ours", "ours_unique_a2"), baselines=False)
+    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4, n_motions=8,
+                                              n_offsets=32))  # fmt: skip
+    fields = jax.tree.map(jnp.asarray, rival_fields(fp))
+    n_img = image_size([row_of_rooms(widths=(PITCH,) * 4)])  # one static size for both scenes
+    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
+                       fields, n_img)  # fmt: skip
+    ev = evidence_of(run)
+    out = []
+    for k in range(K):
+        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        out.append(jax.tree.map(np.asarray, d))
+    return jax.tree.map(lambda *x: np.stack(x), *out)
+
+
+def test_a_unique_path_commits_no_later_than_the_count_and_at_the_truth():
+    # rooms of three different lengths: a walk through all of them fits one place only
+    fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))
+    there_and_back = [[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5], [18.0, 2.5], [11.0, 2.5],
+                      [6.0, 3.5], [1.5, 3.5]]  # fmt: skip
+    run = make_run(walk(there_and_back), A, K, truth_only, J=J, fp=fp)
+    # windows that share scans with the two before them, as a step of d_s / 3 cuts them: the
+    # count needs windows 0, 3 and 6 (scan-disjoint) before it commits
+    run["window_start"] = np.concatenate([[0, 0, 0], run["window_end"][:-3] + 1]).astype(np.int32)
+    d = _decide(fp, run)
+    ours, uniq = d.state[:, 0], d.state[:, 1]
+    assert (uniq == COMMIT).any(), (uniq.tolist(), d.llr[:, 1].tolist())
+    k_u = int(np.argmax(uniq == COMMIT))
+    k_o = int(np.argmax(ours == COMMIT)) if (ours == COMMIT).any() else K
+    assert k_u < k_o, (k_u, k_o)  # the test, not the count, commits it
+    # at the first window whose ratio reaches log(1 / alpha), not before
+    assert k_u == int(np.argmax(d.llr[:, 1] >= np.log(1e2))), d.llr[:, 1].tolist()
+    assert np.isnan(d.llr[:, 0]).all()  # the count lane reports no ratio
+    dxy, dth = se2.distance_pair(d.anchor[k_u, 1], A)
+    assert float(dxy) < 0.3 and np.rad2deg(float(dth)) < 2.0
+
+
+def test_a_walk_inside_one_of_four_congruent_rooms_never_commits():
+    fp = row_of_rooms()  # four congruent rooms, doors at the same place
+    traj = walk([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0], [2.0, 4.0], [2.0, 1.2]])
+    traj[:, 0] += PITCH
+    run = make_run(traj, A, K, shifted_too, J=J, fp=fp)
+    d = _decide(fp, run)
+    assert not (d.state[:, 1] == COMMIT).any(), (d.state[:, 1].tolist(), d.llr[:, 1].tolist())
+    ran = np.isfinite(d.llr[:, 1])
+    assert (d.llr[ran, 1] < np.log(1e2)).all()

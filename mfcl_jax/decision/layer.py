@@ -280,5 +280,6 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
             n_rejected, bdec.state.shape)})  # fmt: skip
         out = jax.tree.map(lambda a, b: jnp.concatenate([a, b], axis=0), out, bdec)
     h = History(**{**h.__dict__, "support": support})
-    new = LayerState(world, h, path, held, base, riv, riv_ok, searches, n_rejected, u_tests)
+    new = LayerState(world, h, path, held, base, riv, riv_ok, searches, u_tests=u_tests,
+                     n_rejected=n_rejected)  # fmt: skip
     return _where(ev.valid, new, before), out

@@ -1,7 +1,7 @@
 """Certification timing: what the per-window blocks cost (``decision.certify``).
 
 The certification re-scores every window of a prefix under every explanation at its best fit
-(``certify._window_scores``, 13 poses per explanation) and, since stop 22, scores each window's
+(``certify._window_scores``, 13 poses per explanation) and also scores each window's
 evidence again in ``CERT_BLOCKS`` contiguous blocks at the fitted pose. This script times, in
 one run so the ratios are comparable:
 

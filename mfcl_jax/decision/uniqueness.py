@@ -5,9 +5,9 @@ explains what I have seen"; this module checks that statement, with a stated err
 (``frontend.path_llr``), so a lane may commit as soon as it holds, whatever the count:
 
 1. the candidates: every placement of the whole path that the global search finds
-   (``frontend.path_search``: exhaustive over headings at 5 deg and translations at 0.5 m,
-   then polished), the newest window's best registrations, the consensus winner ``T*`` and
-   the probe's aliases of it (the building's known symmetries);
+   (``frontend.path_search``: exhaustive over headings at 5 deg and translations on a coarse
+   cell of 0.4-0.5 m, then polished), the newest window's best registrations, the consensus
+   winner ``T*`` and the probe's aliases of it (the building's known symmetries);
 2. each is fitted to the path under the observation model (``path_llr.refine``), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
    5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``;
@@ -20,8 +20,8 @@ Vetoes (the layer's checks, kept): ``A*`` must pass the feasibility gate, agree 
 newest window's champion, and not disagree with a consensus winner of two or more windows.
 
 The search covers every placement on its grid, then the peaks are polished, so a competitor
-narrower than the grid's cell (0.5 m, 5 deg) can be missed: the certificate is exhaustive at
-that resolution, not a bound over the continuum.
+narrower than the grid's cell (0.4-0.5 m, 5 deg) can be missed: the certificate is
+exhaustive at that resolution, not a bound over the continuum.
 """
 
 from __future__ import annotations

@@ -33,41 +33,56 @@ __all__ = ["QUARTER_TURNS", "rotational_motions", "motion_support"]
 QUARTER_TURNS = (90.0, 180.0, 270.0)
 
 
-def _iou(pa, pb) -> float:
-    inter = pa.intersection(pb).area
-    return float(inter / max(pa.area + pb.area - inter, 1e-12))
+def _ious(pa, pb) -> np.ndarray:
+    """Element-wise IoU of two arrays of polygons (shapely's vectorised operations)."""
+    import shapely
+
+    inter = shapely.area(shapely.intersection(pa, pb))
+    return inter / np.maximum(shapely.area(pa) + shapely.area(pb) - inter, 1e-12)
 
 
-def _moved(poly, g):
-    """``poly`` under the rigid motion ``g = (x, y, theta)``."""
-    from shapely import affinity
+def _moved(polys, g):
+    """``polys`` (an array of polygons) under the rigid motion ``g = (x, y, theta)``."""
+    import shapely
 
-    c, s = np.cos(g[2]), np.sin(g[2])
-    return affinity.affine_transform(poly, [c, -s, s, c, g[0], g[1]])
+    c, s = np.cos(g[..., 2]), np.sin(g[..., 2])
+    rot = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (..., 2, 2)
+    coords, idx = shapely.get_coordinates(polys, return_index=True)
+    rot, t = np.broadcast_to(rot, (len(polys), 2, 2)), np.broadcast_to(g[..., :2], (len(polys), 2))
+    moved = np.einsum("nij,nj->ni", rot[idx], coords) + t[idx]
+    return shapely.set_coordinates(shapely.transform(polys, lambda x: x), moved)
 
 
-def _pair_motion(ca: np.ndarray, cb: np.ndarray, theta: float) -> np.ndarray:
-    """``T(c_b) R(theta) T(-c_a)`` as ``(x, y, theta)``."""
+def _pair_motion(ca: np.ndarray, cb: np.ndarray, theta) -> np.ndarray:
+    """``T(c_b) R(theta) T(-c_a)`` as ``(..., 3)`` (broadcast over pairs and turns)."""
     c, s = np.cos(theta), np.sin(theta)
-    t = cb - np.array([c * ca[0] - s * ca[1], s * ca[0] + c * ca[1]])
-    return np.array([t[0], t[1], np.arctan2(s, c)])
+    tx = cb[..., 0] - (c * ca[..., 0] - s * ca[..., 1])
+    ty = cb[..., 1] - (s * ca[..., 0] + c * ca[..., 1])
+    return np.stack([tx, ty, np.arctan2(s, c) + 0.0 * tx], -1)
 
 
-def _similar_area(pa, pb, min_iou: float) -> bool:
-    return min(pa.area, pb.area) >= min_iou * max(pa.area, pb.area)
+def _similar(areas: np.ndarray, min_iou: float) -> np.ndarray:
+    """``(N, N)``: pairs of distinct rooms whose areas could reach IoU ``min_iou``."""
+    lo = np.minimum(areas[:, None], areas[None, :])
+    hi = np.maximum(areas[:, None], areas[None, :])
+    return (lo >= min_iou * hi) & ~np.eye(len(areas), dtype=bool)
 
 
 def motion_support(polys, g: np.ndarray, min_iou: float) -> int:
     """Number of rooms that ``g`` maps onto a different room with IoU ``>= min_iou``."""
-    n = 0
-    for a, pa in enumerate(polys):
-        moved = _moved(pa, g)
-        if any(
-            b != a and _similar_area(pa, pb, min_iou) and _iou(moved, pb) >= min_iou
-            for b, pb in enumerate(polys)
-        ):
-            n += 1
-    return n
+    import shapely
+
+    polys = np.asarray(polys, dtype=object)
+    if len(polys) == 0:
+        return 0
+    similar = _similar(shapely.area(polys), min_iou)
+    moved = _moved(polys, np.asarray(g, np.float64))
+    # only pairs whose boxes meet can overlap: the plan's tree finds them
+    a, b = shapely.STRtree(polys).query(moved, predicate="intersects")
+    keep = similar[a, b]
+    a, b = a[keep], b[keep]
+    hit = _ious(moved[a], polys[b]) >= min_iou
+    return int(np.unique(a[hit]).size)
 
 
 def rotational_motions(
@@ -85,37 +100,34 @@ def rotational_motions(
         ``(motions (M, 3), support (M,))``: motions ``(x, y, theta)`` in the floor-plan frame,
         most supported first, and how many rooms each maps onto a congruent room.
     """
-    from shapely import affinity
+    import shapely
 
-    polys = [room.polygon for room in fp.rooms]
-    if not polys:
+    polys = np.asarray([room.polygon for room in fp.rooms] + [None], dtype=object)[:-1]
+    if len(polys) == 0:
         return np.zeros((0, 3)), np.zeros((0,), np.int64)
-    cents = [np.array([p.centroid.x, p.centroid.y]) for p in polys]
-    lo = np.min([p.bounds[:2] for p in polys], axis=0)
-    hi = np.max([p.bounds[2:] for p in polys], axis=0)
-    centre = (lo + hi) / 2
-    found: list[np.ndarray] = []
-    for a, pa in enumerate(polys):
-        for b, pb in enumerate(polys):
-            if a == b or not _similar_area(pa, pb, min_iou):
-                continue
-            off = cents[b] - cents[a]
-            if _iou(affinity.translate(pa, off[0], off[1]), pb) >= min_iou:
-                continue  # a translated copy: the translational probe's business
-            for deg in QUARTER_TURNS:
-                g = _pair_motion(cents[a], cents[b], np.deg2rad(deg))
-                if _iou(_moved(pa, g), pb) >= min_iou:
-                    found.append(g)
+    cents = shapely.get_coordinates(shapely.centroid(polys))
+    bounds = shapely.bounds(polys)
+    centre = (bounds[:, :2].min(0) + bounds[:, 2:].max(0)) / 2
+    a, b = np.nonzero(_similar(shapely.area(polys), min_iou))
+    # a translated copy is the translational probe's business, not a rotation
+    shift = np.concatenate([cents[b] - cents[a], np.zeros((len(a), 1))], 1)
+    translated = _ious(_moved(polys[a], shift), polys[b]) >= min_iou
+    a, b = a[~translated], b[~translated]
+    turns = np.deg2rad(np.asarray(QUARTER_TURNS))
+    g = _pair_motion(cents[a][:, None], cents[b][:, None], turns[None, :])  # (P, 3, 3)
+    pa = np.repeat(polys[a], len(turns))
+    hit = _ious(_moved(pa, g.reshape(-1, 3)), np.repeat(polys[b], len(turns))) >= min_iou
+    found = g.reshape(-1, 3)[hit]
     uniq: list[np.ndarray] = []
-    for g in found:
-        at = _apply(g, centre)
+    for gi in found:
+        at = _apply(gi, centre)
         if all(
             np.hypot(*(at - _apply(u, centre))) > dedupe
-            or abs(np.angle(np.exp(1j * (g[2] - u[2])))) > angle_tol
+            or abs(np.angle(np.exp(1j * (gi[2] - u[2])))) > angle_tol
             for u in uniq
         ):
-            uniq.append(g)
-    support = np.array([motion_support(polys, g, min_iou) for g in uniq], np.int64)
+            uniq.append(gi)
+    support = np.array([motion_support(polys, gi, min_iou) for gi in uniq], np.int64)
     order = np.argsort(-support, kind="stable")
     return np.asarray(uniq, np.float64).reshape(-1, 3)[order], support[order]
 

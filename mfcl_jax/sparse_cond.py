@@ -19,6 +19,19 @@ from jax import custom_batching
 __all__ = ["sparse_cond"]
 
 
+# ``f`` wrapped once in ``jax.jit``: the branch, its zeros' shape (``eval_shape``) and the
+# batching rule's rows then share one trace of ``f`` per input shape (a nested ``jit`` is
+# inlined when the program compiles, so only tracing time changes)
+_JITTED: dict = {}
+
+
+def _jitted(f):
+    g = _JITTED.get(f)
+    if g is None:
+        g = _JITTED[f] = jax.jit(f)
+    return g
+
+
 def _zeros(f, x):
     return jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(f, x))
 
@@ -41,6 +54,7 @@ def sparse_cond(pred, f, x):
     Returns:
         ``f(x)``, or a pytree of zeros shaped like it.
     """
+    f = _jitted(f)
 
     @custom_batching.custom_vmap
     def branch(pred, x):

@@ -190,6 +190,11 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
                           ln.use_unique, ln.unique_llr)  # fmt: skip
 
 
+# jitted (and inlined when the step compiles) so that the shape of its output and the loop
+# below share one trace of it
+_decide_once = jax.jit(_decide)
+
+
 def _search(ops):
     """The rival search on the history, written into the run's next rival slots."""
     world, h, riv, riv_ok, searches = ops
@@ -247,7 +252,7 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         # so the program holds one copy of the decision.
         riv, riv_ok, searches, searched, held, out = carry
         allow = (i == 0) | searched
-        again = _decide(world, h, cores, state.held, riv, riv_ok, allow, uniq)
+        again = _decide_once(world, h, cores, state.held, riv, riv_ok, allow, uniq)
         held, out = _where(allow, again, (held, out))
         if pl >= 0:
             enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
@@ -257,8 +262,8 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
             searches, searched = searches + do.astype(jnp.int32), searched | do
         return riv, riv_ok, searches, searched, held, out
 
-    shape = jax.eval_shape(lambda: _decide(world, h, cores, state.held, state.rivals,
-                                           state.rivals_ok, True, uniq)[1])  # fmt: skip
+    shape = jax.eval_shape(_decide_once, world, h, cores, state.held, state.rivals,
+                           state.rivals_ok, jnp.bool_(True), uniq)[1]  # fmt: skip
     zeros = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shape)
     carry = (state.rivals, state.rivals_ok, state.searches, jnp.bool_(False), state.held, zeros)
     riv, riv_ok, searches, searched, held, out = jax.lax.fori_loop(

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -22,11 +23,12 @@ from mfcl_jax.decision import lattice, layer, rivals
 from mfcl_jax.decision.history import Caps
 from mfcl_jax.decision.lanes import make_lanes
 from mfcl_jax.decision.maps import decision_maps
-from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
+from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend import COMPILER_OPTIONS, FrontendParams, registration
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.robot import status
+from mfcl_jax.robot.traced import Traced
 from mfcl_jax.windows.arrays import EVIDENCE_POINTS, SubmapBatch, bucket, evidence_sample
 
 __all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize", "record_of"]
@@ -149,6 +151,11 @@ def _step(world, memory, sub, feats, X, traj, traj_mask, start, ev, fe_params):
     return layer.split(state)[1], jax.tree.map(lambda a: a[0], dec), c.reason[0], jnp.sum(c.mask[0])
 
 
+def _step_like(world, memory, *_):
+    """The structure of ``_step``'s output (``Traced`` reads a kept program back untraced)."""
+    return memory, Decision(**dict.fromkeys(Decision.__dataclass_fields__, 0)), 0, 0
+
+
 def _advance(world, memory, traj, traj_mask):
     return layer.split(layer.advance(layer.join(world, memory), traj, traj_mask))[1]
 
@@ -176,8 +183,11 @@ class Localizer:
             n_img = rivals.image_size([floorplan])
         self._init = (maps, p.as_arrays(), self.params.caps, jax.tree.map(jnp.asarray, lanes),
                       spec, fields, n_img)  # fmt: skip
-        self._step = jax.jit(_step, static_argnames=("fe_params",), donate_argnums=(1,),
-                             compiler_options=COMPILER_OPTIONS)  # fmt: skip
+        folder = jax.config.jax_compilation_cache_dir
+        fe_params = self.params.frontend
+        self._step = Traced(partial(_step, fe_params=fe_params), "step", folder,
+                            static=repr(fe_params), out_like=_step_like, donate_argnums=(1,),
+                            compiler_options=COMPILER_OPTIONS)  # fmt: skip
         self._advance = jax.jit(_advance, donate_argnums=(1,))
         self._capacity = bucket(self.params.window.capacity, 256)
 
@@ -223,7 +233,6 @@ class Localizer:
                 memory, dec, reason, n_cand = self._step(
                     world, memory, self._submap(w), self._feats, np.asarray(w.X[0], np.float32),
                     tr, tm, np.int32(j0 - base), evidence_sample(w.points[0], w.origins[0]),
-                    fe_params=self.params.frontend,
                 )  # fmt: skip
                 yield WindowResult(
                     k=k, decision=jax.tree.map(np.asarray, dec), first=int(w.keyframes[j0]),

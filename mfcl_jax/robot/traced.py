@@ -13,6 +13,8 @@ never read back. Without a cache folder (``MFCL_CACHE_DIR=off``) it is a plain `
 from __future__ import annotations
 
 import hashlib
+import os
+import uuid
 import warnings
 from pathlib import Path
 
@@ -106,7 +108,7 @@ class Traced:
 
         exp = jax.export.export(jax.jit(flat))(*specs)
         path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        tmp = path.with_suffix(f".tmp{np.random.randint(1 << 30)}")
+        tmp = path.with_suffix(f".tmp{os.getpid()}-{uuid.uuid4().hex[:8]}")
         tmp.write_bytes(exp.serialize())
         tmp.replace(path)  # atomic: a concurrent reader sees the whole file or none
         return exp

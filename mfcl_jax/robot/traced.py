@@ -78,10 +78,9 @@ class Traced:
         counts = [len(jax.tree.leaves(a)) for a in args]
         starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
         donate = tuple(i for a in self._donate for i in range(starts[a], starts[a + 1]))
-        digest = hashlib.sha256(
-            "\n".join([source_digest(), self._name, self._static, str(tree), str(specs),
-                       str(out_tree), repr(self._options)]).encode()  # fmt: skip
-        ).hexdigest()[:32]
+        parts = [source_digest(), self._name, self._static, str(tree), str(specs),
+                 str(out_tree), repr(self._options)]  # fmt: skip
+        digest = hashlib.sha256("\n".join(parts).encode()).hexdigest()[:32]
         path = self._folder / f"{self._name}-{digest}.jaxexport"
         try:
             exp = self._load(path) or self._export(tree, specs, path)

@@ -88,7 +88,11 @@ class Traced:
             warnings.warn(f"{path}: traced program not kept ({e}); tracing as usual",
                           stacklevel=3)  # fmt: skip
             return lambda leaves: self._jit(*jax.tree.unflatten(tree, leaves))
+        # every input placed on the one device: the program read back returns arrays placed
+        # there, and an input fed back from a previous call must not compile a second program
+        one = jax.sharding.SingleDeviceSharding(jax.devices()[0])
         run = jax.jit(lambda *leaves: exp.call(*leaves), donate_argnums=donate,
+                      in_shardings=one, out_shardings=one,
                       compiler_options=self._options)  # fmt: skip
         return lambda leaves: jax.tree.unflatten(out_tree, run(*leaves))
 

@@ -72,3 +72,20 @@ def test_many_refusals_write_nothing(folder, tmp_path, capsys):
     (broken / "odometry.tum").write_text("0 1 2 3\n")
     fails(["localize", east, broken, "--out-dir", out], broken / "odometry.tum", "8 columns")
     assert not out.exists() and _snapshot(folder) == before
+
+
+def test_chunks_of_unequal_size_share_one_compilation(folder):
+    """Three recordings in chunks of at most two: chunks of 2 and 1, the second padded to the
+    first, decided by one compiled program; a recording decides as it does in any chunk."""
+    from mfcl_jax.decision.runs import TRACES
+    from mfcl_jax.robot.many import localize_batch
+    from mfcl_jax.sources.dataset import load_dataset
+
+    east, west = (load_dataset(folder / n) for n in ("east", "west"))
+    before = TRACES["scan_runs"]
+    out = dict(localize_batch([east.floorplan] * 3, [east, west, east], chunk=2))
+    assert TRACES["scan_runs"] - before <= 1
+    assert sorted(out) == [0, 1, 2]
+    assert [r["state"] for r in out[2].records] == [r["state"] for r in out[0].records]
+    for a, b in zip(out[0].records, out[2].records, strict=True):
+        assert a.get("pose") == b.get("pose")

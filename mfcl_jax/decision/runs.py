@@ -21,7 +21,8 @@ from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import decision_maps, stack_maps
 from mfcl_jax.decision.params import DecisionParams
 
-__all__ = ["RunInputs", "run_inputs", "scan_runs", "decide_runs", "decide", "chunks"]
+__all__ = ["RunInputs", "run_inputs", "Buildings", "stack_buildings", "scan_runs", "decide_runs",
+           "decide", "chunks"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,26 @@ def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs
     return RunInputs(evw, n_windows, seg_w, seg_t)
 
 
+@dataclass(frozen=True)
+class Buildings:
+    """Every building's decision maps (and rival fields), padded to one grid and stacked
+    ``(B, ...)``: callers that decide in several calls build it once, so that every call
+    shares one compilation whichever buildings it holds."""
+
+    maps: object
+    fields: object  # None without a rival search
+    n_img: int
+
+
+def stack_buildings(floorplans, spec: LaneSpec, rival_params=rivals.DEFAULT_RIVALS) -> Buildings:
+    """``Buildings`` of ``floorplans`` for the lanes of ``spec`` (``rivals.RivalParams``)."""
+    maps = stack_maps([decision_maps(fp, min_iou=spec.min_iou) for fp in floorplans])
+    if spec.primary < 0:
+        return Buildings(maps, None, 0)
+    return Buildings(maps, rivals.stack_fields(floorplans, rival_params),
+                     rivals.image_size(floorplans, rival_params))  # fmt: skip
+
+
 def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None):
     """Run indices in chunks of at most ``runs_per_call`` runs and ``buildings_per_call``
     distinct buildings; runs with different ``keys`` (capacity buckets) never share a chunk,
@@ -154,7 +175,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
                 lanes: Lanes, spec: LaneSpec, runs_per_call: int = 16,
                 buildings_per_call: int = 8, progress=None,
                 rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS,
-                min_windows: int = 16, min_traj: int = 128):  # fmt: skip
+                min_windows: int = 16, min_traj: int = 128, min_runs: int = 1,
+                buildings: Buildings | None = None):  # fmt: skip
     """Every lane's decision at every window of every run.
 
     Args:
@@ -163,8 +185,11 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         params, lanes, spec: ``lanes.lanes(...)``.
         runs_per_call, buildings_per_call: chunk sizes.
         progress: optional callable ``progress(runs_done)``.
-        min_windows, min_traj: the least window and keyframe capacities (``Caps``): batches
-            with the same floors share one compilation.
+        min_windows, min_traj: the least window and keyframe capacities (``Caps``) and scan
+            length: batches with the same floors share one compilation.
+        min_runs: the least runs per call (rows past the batch are padded and masked).
+        buildings: ``stack_buildings(floorplans, ...)``, when the caller decides several
+            batches of the same buildings (default: built here from the batch's buildings).
 
     Returns:
         ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
@@ -172,13 +197,13 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     """
     rb = np.asarray(run_building)
     R, K = np.asarray(inputs.evidence.valid).shape
-    used = sorted(set(rb.tolist()))
-    # one grid bucket for every building of the batch: one compilation per capacity bucket
-    all_maps = stack_maps([decision_maps(floorplans[b], min_iou=spec.min_iou) for b in used])
-    search = spec.primary >= 0
-    all_fields = rivals.stack_fields([floorplans[b] for b in used], rival_params) if search \
-        else None  # fmt: skip
-    n_img = rivals.image_size([floorplans[b] for b in used], rival_params) if search else 0
+    # one grid bucket for every building: one compilation per capacity bucket
+    if buildings is None:
+        used = sorted(set(rb.tolist()))
+        buildings = stack_buildings([floorplans[b] for b in used], spec, rival_params)
+    else:
+        used = list(range(len(floorplans)))
+    all_maps, all_fields, n_img = buildings.maps, buildings.fields, buildings.n_img
     # One capacity bucket for the whole batch: a compilation costs more than the padding.
     k_b = np.full(R, _bucket(int(inputs.seg_windows.max(initial=1)), min_windows, 16))
     t_b = np.full(R, _bucket(int(inputs.seg_keyframes.max(initial=1)), min_traj, 64))
@@ -189,9 +214,9 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     out = None
     done = 0
     p = params.as_arrays()
-    runs_per_call = max(1, min(runs_per_call, R))
+    runs_per_call = max(1, min(runs_per_call, max(R, min_runs)))
     # one scan length for the batch too: a compilation costs more than padded windows
-    kw = _bucket(int(inputs.n_windows.max(initial=1)), 16, 16)
+    kw = _bucket(int(inputs.n_windows.max(initial=1)), min_windows, 16)
     n_b = min(buildings_per_call, len(used))
     for idx in chunks(rb, runs_per_call, n_b, keys=k_b * 65536 + t_b):
         kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])

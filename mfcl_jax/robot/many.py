@@ -66,13 +66,13 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
         seqs: ``ScanSequence``s.
         params: ``LocalizeParams`` (shared).
         progress: ``Progress`` for stages (default: silent).
-        chunk: recordings decided together.
+        chunk: the most recordings decided together.
 
     Yields:
         ``(index, BatchResult)`` per sequence, in order, as each chunk completes.
     """
     from mfcl_jax.decision.lanes import make_lanes
-    from mfcl_jax.decision.runs import decide_runs, run_inputs
+    from mfcl_jax.decision.runs import decide_runs, run_inputs, stack_buildings
     from mfcl_jax.frontend.driver import FrontEnd
 
     params = params or LocalizeParams()
@@ -84,12 +84,16 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
     unique = [by_id[i] for i in plans]
     fe = FrontEnd(unique, params.frontend, chunk=16)
     p, lanes, spec = make_lanes(params.decision, ("ours",), baselines=False)
+    buildings = stack_buildings(unique, spec)
     cap = W.bucket(params.window.capacity, 256)
-    for c0 in range(0, len(seqs), chunk):
-        idx = list(range(c0, min(c0 + chunk, len(seqs))))
+    # chunks of equal size (20 recordings: 7, 7, 6), the last padded to it, so that every
+    # chunk shares one compilation and few idle rows are computed
+    size = max(1, -(-len(seqs) // max(1, -(-len(seqs) // chunk))))
+    for c0 in range(0, len(seqs), size):
+        idx = list(range(c0, min(c0 + size, len(seqs))))
         with progress.stage(f"recordings {idx[0] + 1}-{idx[-1] + 1} of {len(seqs)}: cutting "
                             "windows (LiDAR odometry)"):  # fmt: skip
-            wins = W.cut_many((seqs[i], params.window) for i in idx)
+            wins = W.cut_many(((seqs[i], params.window) for i in idx), rows=size)
         items = [(seqs[i], w, plans.index(id(floorplans[i])))
                  for i, w in zip(idx, wins, strict=True) if len(w)]  # fmt: skip
         done = {i: BatchResult([], []) for i in idx}
@@ -101,7 +105,8 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
                 cands = fe.register(batch.submaps, batch.building, keep=True)
             with progress.stage(f"deciding {n} windows ({first})"):
                 dec, _ = decide_runs(run_inputs(batch, cands, **steps), batch.run_building,
-                                     unique, p, lanes, spec, **floors)  # fmt: skip
+                                     unique, p, lanes, spec, min_runs=size,
+                                     buildings=buildings, **floors)  # fmt: skip
             valid = np.asarray(cands.mask).sum(1)
             r = 0
             for i, w in zip(idx, wins, strict=True):

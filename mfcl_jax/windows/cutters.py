@@ -13,10 +13,11 @@ from mfcl_jax.windows.submaps import WindowParams, Windows, _windows, window
 __all__ = ["cut_many", "Cutter"]
 
 
-def cut_many(items) -> list[Windows]:
+def cut_many(items, rows: int = 1) -> list[Windows]:
     """``cut(seq, params)`` of every ``(seq, params)`` pair, the LiDAR odometry of each
     distinct sequence refined once (shared by its ``d_s`` values) and all of them in one
-    batched kernel (``scanmatch.extend_many``). Equal to cutting one by one."""
+    batched kernel (``odometry.extend_many``; ``rows``: its least batch, so that calls with
+    fewer sequences share its compilation). Equal to cutting one by one."""
     items = list(items)
     keys = {}
     for seq, p in items:
@@ -32,7 +33,8 @@ def cut_many(items) -> list[Windows]:
     for sm, ks in groups.items():
         meters = [Odometer(sm) for _ in ks]
         scans = [[keys[k][0].scans[i] for i in kfs[k][0]] for k in ks]
-        poses = extend_many(meters, scans, [kfs[k][1] for k in ks], [kfs[k][2] for k in ks])
+        poses = extend_many(meters, scans, [kfs[k][1] for k in ks], [kfs[k][2] for k in ks],
+                            rows=rows)  # fmt: skip
         for k, m, po in zip(ks, meters, poses, strict=True):
             odos[k] = (po, m.segments)
     out = []

@@ -181,12 +181,13 @@ class Odometer:
         return self.poses
 
 
-def extend_many(odometers, scans, odometry, segments) -> list[np.ndarray]:
+def extend_many(odometers, scans, odometry, segments, rows: int = 1) -> list[np.ndarray]:
     """``Odometer.extend`` of several odometers (one per recording) in one batched kernel.
 
     The recordings' keyframes are fed chunk by chunk (``chunk`` keyframes of every
     recording per call, shorter ones padded), so one compilation serves any length; each
-    recording's poses are exactly what its own ``extend`` would give.
+    recording's poses are exactly what its own ``extend`` would give. ``rows``: the least
+    recordings per call (idle rows padded), so that batches of fewer share the compilation.
 
     Returns:
         The refined poses ``(M_i, 3)`` of all keyframes so far, per odometer.
@@ -198,10 +199,11 @@ def extend_many(odometers, scans, odometry, segments) -> list[np.ndarray]:
     if not p.enabled:
         return [od._append(o, np.zeros(len(o), bool), g)
                 for od, o, g in zip(odometers, odometry, given, strict=True)]  # fmt: skip
-    n = len(odometers)
+    n = max(len(odometers), rows)
     longest = max((len(o) for o in odometry), default=0)
-    carry = jax.tree.map(lambda *xs: np.stack(xs), *[od._carry for od in odometers])
-    out = [([], [], []) for _ in range(n)]
+    idle = [odometers[0]._carry] * (n - len(odometers))
+    carry = jax.tree.map(lambda *xs: np.stack(xs), *[od._carry for od in odometers], *idle)
+    out = [([], [], []) for _ in odometers]
     for i0 in range(0, longest, p.chunk):
         S = np.zeros((n, p.chunk, p.points, 2), np.float32)
         M = np.zeros((n, p.chunk, p.points), bool)

@@ -95,9 +95,7 @@ def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs
 
 @dataclass(frozen=True)
 class Buildings:
-    """Every building's decision maps (and rival fields), padded to one grid and stacked
-    ``(B, ...)``: callers that decide in several calls build it once, so that every call
-    shares one compilation whichever buildings it holds."""
+    """Every building's decision maps (and rival fields) padded to one grid, ``(B, ...)``."""
 
     maps: object
     fields: object  # None without a rival search
@@ -162,13 +160,8 @@ def scan_runs(
 _COMPILED: dict = {}
 
 
-def _bucket(n: int, minimum: int, step: int | None = None) -> int:
-    if step:
-        return max(minimum, -(-int(n) // step) * step)
-    cap = minimum
-    while cap < n:
-        cap *= 2
-    return cap
+def _bucket(n: int, minimum: int, step: int) -> int:
+    return max(minimum, -(-int(n) // step) * step)
 
 
 def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
@@ -188,8 +181,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         min_windows, min_traj: the least window and keyframe capacities (``Caps``) and scan
             length: batches with the same floors share one compilation.
         min_runs: the least runs per call (rows past the batch are padded and masked).
-        buildings: ``stack_buildings(floorplans, ...)``, when the caller decides several
-            batches of the same buildings (default: built here from the batch's buildings).
+        buildings: ``stack_buildings(floorplans, ...)``, built once by a caller deciding several
+            batches, so that all share one compilation (default: the batch's buildings).
 
     Returns:
         ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and

@@ -33,19 +33,33 @@ def _snapshot(folder):
     return {p: p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def test_a_folder_of_datasets_in_one_batch(folder, tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["localize", str(folder), "--out-dir", str(out)]) == 0
+def test_a_folder_of_datasets_in_one_batch(folder, tmp_path, capsys, monkeypatch):
+    """Three datasets in chunks of at most two: chunks of 2 and 1, the second padded to the
+    first, so one compiled program decides both; ``zeast`` (a copy of ``east``, alone in the
+    padded chunk) decides as ``east`` does."""
+    from mfcl_jax.decision.runs import TRACES
+    from mfcl_jax.robot import many
+
+    data, out = tmp_path / "data", tmp_path / "out"
+    for name in WALKS:
+        shutil.copytree(folder / name, data / name)
+    shutil.copytree(folder / "east", data / "zeast")
+    monkeypatch.setattr(many, "CHUNK", 2)
+    before = TRACES["scan_runs"]
+    assert main(["localize", str(data), "--out-dir", str(out)]) == 0
+    assert TRACES["scan_runs"] - before <= 1
     text = capsys.readouterr().out
-    assert sorted(p.name for p in out.iterdir()) == ["east.jsonl", "west.jsonl"]
+    names = ["east", "west", "zeast"]
+    assert sorted(p.name for p in out.iterdir()) == [f"{n}.jsonl" for n in names]
     table = text[text.index("dataset  windows") :].splitlines()
     assert table[0].split() == ["dataset", "windows", "first", "commit", "k", "final", "state"]
-    decs = {n: read_decisions(out / f"{n}.jsonl") for n in WALKS}
-    for name, line in zip(sorted(WALKS), table[2:4], strict=True):
+    decs = {n: read_decisions(out / f"{n}.jsonl") for n in names}
+    for name, line in zip(names, table[2:5], strict=True):
         d = decs[name]
         first = next((x["k"] for x in d if x["state"] == "COMMIT"), "-")
         assert line.split() == [name, str(len(d)), str(first), d[-1]["state"]]
-        assert f"{folder / name}: " in text and all("pose" in x and "reason" in x for x in d)
+        assert f"{data / name}: " in text and all("pose" in x and "reason" in x for x in d)
+    assert decs["zeast"] == decs["east"]
     # (that the batch decides as a robot does, one window at a time, is
     # tests/test_rivals.py::test_robot_and_batch_search_at_the_same_windows_and_agree)
 
@@ -72,20 +86,3 @@ def test_many_refusals_write_nothing(folder, tmp_path, capsys):
     (broken / "odometry.tum").write_text("0 1 2 3\n")
     fails(["localize", east, broken, "--out-dir", out], broken / "odometry.tum", "8 columns")
     assert not out.exists() and _snapshot(folder) == before
-
-
-def test_chunks_of_unequal_size_share_one_compilation(folder):
-    """Three recordings in chunks of at most two: chunks of 2 and 1, the second padded to the
-    first, decided by one compiled program; a recording decides as it does in any chunk."""
-    from mfcl_jax.decision.runs import TRACES
-    from mfcl_jax.robot.many import localize_batch
-    from mfcl_jax.sources.dataset import load_dataset
-
-    east, west = (load_dataset(folder / n) for n in ("east", "west"))
-    before = TRACES["scan_runs"]
-    out = dict(localize_batch([east.floorplan] * 3, [east, west, east], chunk=2))
-    assert TRACES["scan_runs"] - before <= 1
-    assert sorted(out) == [0, 1, 2]
-    assert [r["state"] for r in out[2].records] == [r["state"] for r in out[0].records]
-    for a, b in zip(out[0].records, out[2].records, strict=True):
-        assert a.get("pose") == b.get("pose")

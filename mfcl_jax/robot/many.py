@@ -58,7 +58,7 @@ def _floors(seqs, p: W.WindowParams) -> dict:
 
 
 def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progress=None,
-                   chunk: int = CHUNK) -> Iterator[tuple[int, BatchResult]]:  # fmt: skip
+                   chunk: int | None = None) -> Iterator[tuple[int, BatchResult]]:  # fmt: skip
     """Decisions at every window of every sequence, chunk by chunk.
 
     Args:
@@ -66,7 +66,7 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
         seqs: ``ScanSequence``s.
         params: ``LocalizeParams`` (shared).
         progress: ``Progress`` for stages (default: silent).
-        chunk: the most recordings decided together.
+        chunk: the most recordings decided together (default ``CHUNK``).
 
     Yields:
         ``(index, BatchResult)`` per sequence, in order, as each chunk completes.
@@ -77,6 +77,7 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
 
     params = params or LocalizeParams()
     progress = progress or Progress(False)
+    chunk = chunk or CHUNK
     floors = _floors(seqs, params.window)
     steps = {k: floors.pop(k) for k in ("min_step", "min_head")}
     plans = list(dict.fromkeys(id(fp) for fp in floorplans))

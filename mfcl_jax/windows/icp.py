@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
+from mfcl_jax.arg_reduce import argmin
 
 __all__ = ["ScanMatchParams", "thin_scan", "thresholds", "normals", "icp"]
 
@@ -155,7 +156,7 @@ def icp(pred, scan, smask, mpts, mnrm, mmask, th):
         # expansion: exact to the last bit whatever the batch (a product's rounding follows
         # the batch size's kernel), and no cancellation.
         d2 = (q[:, None, 0] - mp[None, :, 0]) ** 2 + (q[:, None, 1] - mp[None, :, 1]) ** 2
-        j = jnp.argmin(d2, axis=1)
+        j = argmin(d2, axis=1)  # two plain reductions, not jnp.argmin's scalar loop
         m = mp[j]
         return q, m, mnrm[j], jnp.sum((q - m) ** 2, axis=1)
 

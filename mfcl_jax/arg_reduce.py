@@ -10,6 +10,7 @@ and a NaN counts as the extreme (the first NaN wins), as in ``jnp.argmin``.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 __all__ = ["argmin", "argmax"]
@@ -26,6 +27,9 @@ def argmin(x, axis: int = -1):
     shape = [1] * x.ndim
     shape[axis] = n
     idx = jnp.arange(n, dtype=jnp.int32).reshape(shape)
+    # one copy of ``x`` for both reductions: XLA may otherwise recompute an elementwise ``x``
+    # inside each, and two computations of it need not agree to the last bit
+    x = jax.lax.optimization_barrier(x)
     least = _first(x == jnp.min(x, axis=axis, keepdims=True), idx, n, axis)
     if not jnp.issubdtype(x.dtype, jnp.floating):
         return least

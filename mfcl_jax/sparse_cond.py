@@ -12,6 +12,8 @@ branch. Nested ``vmap``s apply the rule at every level.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 from jax import custom_batching
@@ -21,15 +23,9 @@ __all__ = ["sparse_cond"]
 
 # ``f`` wrapped once in ``jax.jit``: the branch, its zeros' shape (``eval_shape``) and the
 # batching rule's rows then share one trace of ``f`` per input shape (a nested ``jit`` is
-# inlined when the program compiles, so only tracing time changes)
-_JITTED: dict = {}
-
-
-def _jitted(f):
-    g = _JITTED.get(f)
-    if g is None:
-        g = _JITTED[f] = jax.jit(f)
-    return g
+# inlined when the program compiles, so only tracing time changes); bounded, so that a
+# caller passing a fresh closure per trace holds no more than the last few
+_jitted = functools.lru_cache(maxsize=64)(jax.jit)
 
 
 def _zeros(f, x):

@@ -10,6 +10,7 @@ recording's input odometry, before any work.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -89,7 +90,8 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
     cap = W.bucket(params.window.capacity, 256)
     # chunks of equal size (20 recordings: 7, 7, 6), the last padded to it, so that every
     # chunk shares one compilation and few idle rows are computed
-    size = max(1, -(-len(seqs) // max(1, -(-len(seqs) // chunk))))
+    n_chunks = max(1, math.ceil(len(seqs) / chunk))
+    size = max(1, math.ceil(len(seqs) / n_chunks))
     for c0 in range(0, len(seqs), size):
         idx = list(range(c0, min(c0 + size, len(seqs))))
         with progress.stage(f"recordings {idx[0] + 1}-{idx[-1] + 1} of {len(seqs)}: cutting "

@@ -216,3 +216,40 @@ def test_robot_and_batch_search_at_the_same_windows_and_agree():
     assert states == frame.state.tolist() and "COMMIT" in states
     for r, row in zip(online, frame.itertuples(), strict=True):
         np.testing.assert_allclose(np.asarray(r.decision.anchor)[:2], [row.x, row.y], atol=1e-3)
+
+
+def test_buildings_decided_by_size_class_as_on_one_grid():
+    """``decide_runs(size_classes=True)`` (each building size class on its own grid and search
+    image, as the benchmark runs) decides every run as the one shared grid does: the search's
+    cost follows the building, its answers do not."""
+    from mfcl_jax.decision import make_lanes
+    from mfcl_jax.decision.inputs import RunInputs
+    from mfcl_jax.decision.runs import decide_runs, size_class
+
+    small = row_of_rooms(widths=(PITCH, 9.0, 5.5))
+    large = row_of_rooms(widths=(PITCH, 9.0, 5.5, 8.0, 6.5, 9.5))
+    assert size_class(small) != size_class(large)
+    near = walk([[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5], [18.0, 2.5]])
+    far = walk([[24.0, 1.5], [28.0, 1.5], [28.0, 3.5], [33.0, 2.5], [41.0, 2.5]])  # large only
+    runs = [make_run(t, A, K, lambda k, y: [(y, 1.0)], J=J, fp=fp)
+            for t, fp in ((far, large), (near, small))]  # fmt: skip
+    back = make_run(near[::-1].copy(), np.array([0.5, 1.0, -0.3]), K, lambda k, y: [(y, 1.0)],
+                    J=J, fp=small)  # fmt: skip
+    runs.append(back)  # two runs of the small building, one of the large
+    evs = [evidence_of(r) for r in runs]
+    ev = jax.tree.map(lambda *x: np.stack(x), *evs)
+    n = np.asarray([int(np.sum(e.valid)) for e in evs])
+    inputs = RunInputs(ev, n, n, np.full(len(runs), max(len(near), len(far))))
+    p, lanes, spec = make_lanes(None, ("ours",), False, "ours")
+    building = np.asarray([1, 0, 0])  # floorplans below: small, large
+    done = []
+    one, _ = decide_runs(inputs, building, [small, large], p, lanes, spec, min_traj=256)
+    split, tm = decide_runs(inputs, building, [small, large], p, lanes, spec, min_traj=256,
+                            size_classes=True, progress=done.append)  # fmt: skip
+    assert done[-1] == len(runs)
+    # the comparison includes commits in both buildings (the far walk lies outside the small
+    # building: a run decided on the wrong grid would not commit)
+    assert (np.asarray(one.state)[:2] == 2).any(axis=(1, 2)).all()
+    for name in ("state", "kind", "reason", "searched"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(one, name), err_msg=name)
+    np.testing.assert_allclose(split.anchor, one.anchor, atol=1e-4)

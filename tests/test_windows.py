@@ -157,7 +157,7 @@ def test_run_inputs_start_the_layer_over_at_an_odometry_jump():
     last ``step`` go to ``head`` (an empty history extends no walk)."""
     from types import SimpleNamespace
 
-    from mfcl_jax.decision.runs import run_inputs
+    from mfcl_jax.decision.inputs import run_inputs
     from mfcl_jax.frontend.candidates import Candidates
 
     K, T, J, P = 6, 24, 2, 4

@@ -69,7 +69,8 @@ class Collected:
     labels: list = field(default_factory=list)  # RunLabel per run
     mcl: list = field(default_factory=list)  # per-group MCL decision frames
     nominal_labels: dict = field(default_factory=dict)  # (family, seed, walk) -> RunLabel
-    timings: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)  # stage -> seconds
+    n_submaps: int = 0
 
     def tick(self, stage: str, seconds: float) -> None:
         self.timings[stage] = self.timings.get(stage, 0.0) + seconds
@@ -163,7 +164,7 @@ def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
     cands = fe.register(wb.submaps, wb.building)
     col.tick("front-end compile", fe.compile_s - c0)
     col.tick("front-end run", fe.run_s - r0)
-    col.tick("submaps", wb.submaps.n)
+    col.n_submaps += int(wb.submaps.n)
     t0 = time.perf_counter()
     col.labels += _labels(recs, wins, cfg, col)
     col.tick("labels", time.perf_counter() - t0)
@@ -190,8 +191,10 @@ def collect(cfg: BenchmarkConfig, groups, mcl_runner=None) -> Collected:
         if not recs:
             continue
         _group(recs, cfg, fe, col, mcl_runner)
-        n = int(col.timings.get("submaps", 0))
-        _log(cfg, f"{name}: {len(recs)} runs done ({len(col.recordings)} runs, {n} submaps)")
+        _log(
+            cfg,
+            f"{name}: {len(recs)} runs done ({len(col.recordings)} runs, {col.n_submaps} submaps)",
+        )
     return col
 
 
@@ -237,8 +240,9 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     )
     params = [DecisionParams().replace(**k) for k in KNOB_SETS]
     t0 = time.perf_counter()
+    # each size class of building apart: a small plan's searches do not pay for the largest
     frame, tm = decide(batch, cands, col.floorplans, params, ours=tuple(ours),
-                       primary_set=DEFAULT_SET)  # fmt: skip
+                       primary_set=DEFAULT_SET, size_classes=True)  # fmt: skip
     col.tick("decision compile", tm["compile_s"])
     col.tick("decision run", tm["run_s"])
     parts = [frame, *col.mcl]

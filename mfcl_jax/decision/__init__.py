@@ -4,6 +4,7 @@ alias probe, certification, commit machine; one pure ``update`` per window (``la
 from mfcl_jax.decision.anchors import candidate_anchors, sanitize
 from mfcl_jax.decision.frame import to_frame
 from mfcl_jax.decision.history import Caps
+from mfcl_jax.decision.inputs import RunInputs, run_inputs
 from mfcl_jax.decision.lanes import (
     BASELINES,
     OURS_VARIANTS,
@@ -16,7 +17,7 @@ from mfcl_jax.decision.layer import LayerState, WindowEvidence, advance, init, u
 from mfcl_jax.decision.maps import DecisionMaps, decision_maps
 from mfcl_jax.decision.outcome import AMBIGUOUS, COMMIT, DEFER, REASONS, STATE_NAMES, Decision
 from mfcl_jax.decision.params import KNOBS, DecisionParams
-from mfcl_jax.decision.runs import RunInputs, decide_runs, run_inputs
+from mfcl_jax.decision.runs import decide_runs
 
 __all__ = [
     "AMBIGUOUS",

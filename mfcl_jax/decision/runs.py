@@ -1,11 +1,10 @@
 """Many runs at once: ``vmap`` over runs of ``lax.scan(layer.update)``.
 
-The host lays every run's windows out as ``WindowEvidence`` of shape ``(R, K, ...)`` (the
-keyframes each window adds, its candidates, its evidence sample; a ``restart`` flag where an
-odometry segment begins), pads runs into chunks that share capacities (``Caps``) and at most
-``buildings_per_call`` buildings, and calls one compiled function per capacity bucket. The
-decision of every window is made once, by the same ``update`` a robot calls.
-"""
+The host lays every run's windows out as ``WindowEvidence`` of shape ``(R, K, ...)``
+(``inputs.run_inputs``), pads runs into chunks that share capacities (``Caps``) and at most
+``buildings_per_call`` buildings, and calls one compiled function per capacity bucket (and,
+where asked, per building size class: ``size_class``). The decision of every window is made
+once, by the same ``update`` a robot calls."""
 
 from __future__ import annotations
 
@@ -17,80 +16,13 @@ import numpy as np
 
 from mfcl_jax.decision import layer, rivals
 from mfcl_jax.decision.history import Caps
+from mfcl_jax.decision.inputs import RunInputs, run_inputs
 from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import decision_maps, stack_maps
 from mfcl_jax.decision.params import DecisionParams
 
-__all__ = ["RunInputs", "run_inputs", "Buildings", "stack_buildings", "scan_runs", "decide_runs",
-           "decide", "chunks"]  # fmt: skip
-
-
-@dataclass(frozen=True)
-class RunInputs:
-    """The windows of ``R`` runs as the layer sees them (host arrays, ``(R, K, ...)``)."""
-
-    evidence: layer.WindowEvidence
-    n_windows: np.ndarray  # (R,) valid windows per run
-    seg_windows: np.ndarray  # (R,) most windows in one odometry segment
-    seg_keyframes: np.ndarray  # (R,) most keyframes in one odometry segment
-
-
-def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs:
-    """``RunInputs`` of every run of a ``windows.WindowBatch`` and its ``Candidates``.
-
-    ``min_step``, ``min_head``: the least keyframes per window and per segment's first window
-    (several batches with the same floors share one compilation)."""
-    rb, sub, ev = batch.runs, batch.submaps, batch.evidence
-    traj, seg, tmask = (np.asarray(a) for a in (rb.traj, rb.traj_seg, rb.traj_mask))
-    ws, we, wm, sm = (np.asarray(a) for a in (rb.window_start, rb.window_end, rb.window_mask,
-                                              rb.submap))  # fmt: skip
-    R, K = wm.shape
-    chunks, starts, restarts, lasts = [], np.zeros((R, K), np.int32), np.zeros((R, K), bool), \
-        np.zeros((R, K), bool)  # fmt: skip
-    seg_w, seg_t = np.zeros(R, np.int64), np.zeros(R, np.int64)
-    n_windows = wm.sum(1)
-    for r in range(R):
-        prev_seg, prev_end, t0, count = None, -1, 0, 0
-        for k in np.flatnonzero(wm[r]):
-            s = seg[r, ws[r, k]]
-            if s != prev_seg:
-                t0 = int(np.flatnonzero((seg[r] == s) & tmask[r])[0])
-                prev_end, count = t0 - 1, 0
-                restarts[r, k] = True
-                seg_t[r] = max(seg_t[r], int(((seg[r] == s) & tmask[r]).sum()))
-            count += 1
-            seg_w[r] = max(seg_w[r], count)
-            chunks.append((r, k, prev_end + 1, int(we[r, k]) + 1))
-            starts[r, k] = ws[r, k] - t0
-            prev_seg, prev_end = s, int(we[r, k])
-        if n_windows[r]:
-            lasts[r, np.flatnonzero(wm[r])[-1]] = True
-    # Keyframes per window: a few since the previous window, the whole window on a segment's
-    # first (whose history is empty: those go to ``head``, which extends no walk).
-    S = max([b - a for r, k, a, b in chunks if not restarts[r, k]] + [min_step, 1])
-    S = -(-S // 16) * 16
-    S0 = max([b - a - S for r, k, a, b in chunks if restarts[r, k]] + [min_head, 0])
-    S0 = -(-max(S0, 0) // 16) * 16
-    tr = np.zeros((R, K, S, 3), np.float32)
-    tm = np.zeros((R, K, S), bool)
-    hd = np.zeros((R, K, S0, 3), np.float32)
-    hm = np.zeros((R, K, S0), bool)
-    for r, k, a, b in chunks:
-        n = min(b - a, S)
-        tr[r, k, :n], tm[r, k, :n] = traj[r, b - n : b], True
-        if b - a > n:
-            hd[r, k, : b - a - n], hm[r, k, : b - a - n] = traj[r, a : b - n], True
-    idx = np.clip(sm, 0, max(sub.n - 1, 0))
-    ok = wm & (sm >= 0)
-    evw = layer.WindowEvidence(
-        Y=np.asarray(cands.pose)[idx], score=np.asarray(cands.score)[idx],
-        mask=np.asarray(cands.mask)[idx] & ok[..., None], X=np.asarray(sub.X)[idx],
-        traj=tr, traj_mask=tm, head=hd, head_mask=hm, start=starts,
-        ev_points=np.asarray(ev.points)[idx], ev_origins=np.asarray(ev.origins)[idx],
-        ev_mask=np.asarray(ev.mask)[idx] & ok[..., None], valid=ok, last=lasts,
-        restart=restarts,
-    )  # fmt: skip
-    return RunInputs(evw, n_windows, seg_w, seg_t)
+__all__ = ["Buildings", "stack_buildings", "size_class", "scan_runs",
+           "decide_runs", "decide", "chunks"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -169,7 +101,7 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
                 buildings_per_call: int = 8, progress=None,
                 rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS,
                 min_windows: int = 16, min_traj: int = 128, min_runs: int = 1,
-                buildings: Buildings | None = None):  # fmt: skip
+                buildings: Buildings | None = None, size_classes: bool = False):  # fmt: skip
     """Every lane's decision at every window of every run.
 
     Args:
@@ -183,6 +115,9 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         min_runs: the least runs per call (rows past the batch are padded and masked).
         buildings: ``stack_buildings(floorplans, ...)``, built once by a caller deciding several
             batches, so that all share one compilation (default: the batch's buildings).
+        size_classes: without ``buildings``, decide the buildings of each ``size_class`` apart
+            (their own grid and path image, one compilation per class), so that a small
+            building's searches of the plan do not pay for the largest one's image.
 
     Returns:
         ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
@@ -190,6 +125,17 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     """
     rb = np.asarray(run_building)
     R, K = np.asarray(inputs.evidence.valid).shape
+    if buildings is None and size_classes and spec.primary >= 0:
+        used = sorted(set(rb.tolist()))
+        classes: dict = {}
+        for b in used:
+            classes.setdefault(size_class(floorplans[b], rival_params), []).append(b)
+        if len(classes) > 1:
+            return _by_class(classes, inputs, rb, floorplans, params, lanes, spec, progress,
+                             dict(runs_per_call=runs_per_call,
+                                  buildings_per_call=buildings_per_call,
+                                  rival_params=rival_params, min_windows=min_windows,
+                                  min_traj=min_traj, min_runs=min_runs))  # fmt: skip
     # one grid bucket for every building: one compilation per capacity bucket
     if buildings is None:
         used = sorted(set(rb.tolist()))
@@ -251,6 +197,36 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     return out, tm
 
 
+def size_class(floorplan, rival_params=rivals.DEFAULT_RIVALS) -> tuple[int, int]:
+    """``(side, n_img)``: the building's larger raster side in buckets of 256 cells and its
+    search image side (``rivals.image_size``); buildings of one class share a compilation."""
+    r = floorplan.rasterize()
+    return -(-max(r.shape) // 256) * 256, rivals.image_size([floorplan], rival_params)
+
+
+def _by_class(classes, inputs, rb, floorplans, params, lanes, spec, progress, kw):
+    """``decide_runs`` on the runs of each size class apart, merged in run order."""
+    R = rb.shape[0]
+    out, tm, done = None, {"compile_s": 0.0, "run_s": 0.0, "searches": 0}, 0
+    for members in classes.values():
+        idx = np.flatnonzero(np.isin(rb, members))
+        sub = RunInputs(jax.tree.map(lambda a, i=idx: np.asarray(a)[i], inputs.evidence),
+                        inputs.n_windows[idx], inputs.seg_windows[idx],
+                        inputs.seg_keyframes[idx])  # fmt: skip
+        local = np.searchsorted(np.asarray(members), rb[idx]).astype(np.int32)
+        step = None if progress is None else (lambda n, d=done: progress(d + n))
+        dec, t = decide_runs(sub, local, [floorplans[b] for b in members], params, lanes, spec,
+                             progress=step, **kw)  # fmt: skip
+        if out is None:
+            out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
+        for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
+            o[idx, : d.shape[1]] = d
+        for k in tm:
+            tm[k] += t[k]
+        done += len(idx)
+    return out, tm
+
+
 def _fit_windows(a: np.ndarray, n: int) -> np.ndarray:
     """Axis 1 (windows) cut or zero-padded to ``n``."""
     if a.shape[1] >= n:
@@ -268,7 +244,8 @@ def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
 
 def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
            primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
-           buildings_per_call: int = 8, progress=None, **floors):  # fmt: skip
+           buildings_per_call: int = 8, progress=None, size_classes: bool = False,
+           **floors):  # fmt: skip
     """Every lane's decision at every window of a ``WindowBatch``, as a table.
 
     Args:
@@ -278,6 +255,7 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
         params: one ``DecisionParams`` or a list of threshold sets (``lanes.lanes``).
         ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
         primary, primary_set: the lane whose commits trigger the rival search.
+        size_classes: decide each building size class apart (``decide_runs``).
         floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
             (``decide_runs``).
 
@@ -292,5 +270,6 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
     steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
     inputs = run_inputs(batch, cands, **steps)
     dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
-                          buildings_per_call, progress, **floors)  # fmt: skip
+                          buildings_per_call, progress, size_classes=size_classes,
+                          **floors)  # fmt: skip
     return to_frame(dec, spec, batch.runs.window_mask), tm

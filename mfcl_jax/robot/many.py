@@ -72,8 +72,9 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
     Yields:
         ``(index, BatchResult)`` per sequence, in order, as each chunk completes.
     """
+    from mfcl_jax.decision.inputs import run_inputs
     from mfcl_jax.decision.lanes import make_lanes
-    from mfcl_jax.decision.runs import decide_runs, run_inputs, stack_buildings
+    from mfcl_jax.decision.runs import decide_runs, stack_buildings
     from mfcl_jax.frontend.driver import FrontEnd
 
     params = params or LocalizeParams()

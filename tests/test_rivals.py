@@ -204,7 +204,9 @@ def test_robot_and_batch_search_at_the_same_windows_and_agree():
     scene = scene_three_rooms()
     rec = simulate(scene, [next(iter(scene.trajectories))], [0])[0]
     fp = scene.floorplan
-    online = list(Localizer(fp).run(rec.seq))
+    loc = Localizer(fp)
+    online = list(loc.run(rec.seq))
+    assert loc.n_programs == 1  # the step prepared in the background served every window
     wins = W.cut_many([(rec.seq, W.WindowParams())])
     batch = W.pack([(rec.seq, wins[0], 0)], capacity=4096)
     cands = FrontEnd([fp], chunk=1).register(batch.submaps, batch.building)

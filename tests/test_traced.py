@@ -44,3 +44,29 @@ def test_kept_program_read_back_without_tracing(tmp_path, monkeypatch):
     fixed = _call(_make(tmp_path))
     np.testing.assert_array_equal(fixed[0]["s"], want[0]["s"])
     assert kept.read_bytes() != b"not a program"
+
+
+@pytest.mark.parametrize("kept", [False, True])
+def test_prepared_in_the_background_is_the_program_called(tmp_path, kept):
+    """``prepare`` compiles in a thread; the first call with inputs of that shape uses it
+    (no second program), returns what a plain call returns, and an input of another shape
+    still gets its own program."""
+    t = _make(tmp_path if kept else None)
+    state = {"s": np.zeros(4, np.float32)}
+    t.prepare(state, np.zeros(4, np.float32))
+    assert t.n_programs == 1
+    out = _call(t)
+    np.testing.assert_array_equal(out[0]["s"], 2.0 * np.arange(4, dtype=np.float32))
+    assert out[1:] == (6.0, 4) and t.n_programs == 1
+    t({"s": np.zeros(5, np.float32)}, np.ones(5, np.float32))
+    assert t.n_programs == 2
+
+
+def test_a_failed_preparation_raises_at_the_first_call():
+    def bad(state, x):
+        raise ValueError("no such program")
+
+    t = Traced(bad, "bad", None, static="", out_like=_like)
+    t.prepare({"s": np.zeros(2, np.float32)}, np.zeros(2, np.float32))
+    with pytest.raises(ValueError, match="no such program"):
+        t({"s": np.zeros(2, np.float32)}, np.zeros(2, np.float32))

@@ -191,6 +191,11 @@ class Localizer:
         self._advance = jax.jit(_advance, donate_argnums=(1,))
         self._capacity = bucket(self.params.window.capacity, 256)
 
+    @property
+    def n_programs(self) -> int:
+        """Programs of the step so far: 1 when every window had the prepared shape."""
+        return self._step.n_programs
+
     def estimate(self, seq) -> int:
         """The number of windows of ``seq`` by its input odometry (a progress total)."""
         return W.Cutter(self.params.window).estimate(seq)
@@ -208,6 +213,7 @@ class Localizer:
                 before; every window complete in a prefix and not yet seen is decided.
                 Windows are causal, so the results are ``run``'s on the last prefix.
         """
+        self._prepare()
         cutter = W.Cutter(self.params.window)
         world, memory, prev_end, seg, base, k = None, None, -1, None, 0, 0
         step = self.params.caps.step
@@ -231,8 +237,8 @@ class Localizer:
                 tr[: len(traj)] = traj
                 prev_end = j1
                 memory, dec, reason, n_cand = self._step(
-                    world, memory, self._submap(w), self._feats, np.asarray(w.X[0], np.float32),
-                    tr, tm, np.int32(j0 - base), evidence_sample(w.points[0], w.origins[0]),
+                    world, memory, *self._inputs(w.points[0], w.origins[0], w.X[0], w.t[0], tr,
+                                                 tm, j0 - base),
                 )  # fmt: skip
                 yield WindowResult(
                     k=k, decision=jax.tree.map(np.asarray, dec), first=int(w.keyframes[j0]),
@@ -242,18 +248,35 @@ class Localizer:
                     X_input=np.asarray(w.X_input[0]), segment=int(seg), points=w.points[0],
                 )  # fmt: skip
 
-    def _submap(self, w) -> SubmapBatch:
+    def _inputs(self, pts, org, X, t, traj, traj_mask, start) -> tuple:
+        """The step's inputs after ``(world, memory)``: the window's points and origins
+        ``(n, 2)``, its pose ``X (3,)`` and time, the keyframes it adds (``Caps.step``) and
+        its first keyframe in the segment."""
         cap = self._capacity
-        pts, org = w.points[0], w.origins[0]
         n = len(pts)
         points = np.zeros((1, cap, 2), np.float32)
         origins = np.zeros((1, cap, 2), np.float32)
         mask = np.zeros((1, cap), bool)
         points[0, :n], origins[0, :n], mask[0, :n] = pts, org, True
-        sub = SubmapBatch(points, origins, mask, np.asarray(w.X, np.float32)[:1],
-                          np.zeros(1, np.int32), np.zeros(1, np.int32), np.asarray(w.t)[:1],
+        X = np.asarray(X, np.float32)
+        sub = SubmapBatch(points, origins, mask, X[None], np.zeros(1, np.int32),
+                          np.zeros(1, np.int32), np.asarray([t], np.float64),
                           np.zeros(1, np.int32))  # fmt: skip
-        return registration.sanitize_submaps(sub)
+        return (registration.sanitize_submaps(sub), self._feats, X,
+                np.asarray(traj, np.float32), np.asarray(traj_mask, bool), np.int32(start),
+                evidence_sample(pts, org))  # fmt: skip
+
+    def _prepare(self) -> None:
+        """The step traced and compiled in the background (``Traced.prepare``) for inputs
+        shaped like every window's, while the odometry runs over the first metres."""
+        if self._step.n_programs:
+            return
+        world, memory = layer.split(layer.init(*self._init))
+        z = np.zeros((0, 2), np.float32)
+        step = self.params.caps.step
+        self._step.prepare(world, memory, *self._inputs(z, z, np.zeros(3), 0.0,
+                                                        np.zeros((step, 3)), np.zeros(step),
+                                                        0))  # fmt: skip
 
 
 def localize(floorplan, seq, params: LocalizeParams | None = None) -> list:

@@ -8,12 +8,18 @@ later process, reads it back instead of tracing; the compilation cache then supp
 compiled code. The file's key is a digest of the package's source files, the JAX version,
 the inputs' structure, shapes and dtypes and the static settings, so a changed program is
 never read back. Without a cache folder (``MFCL_CACHE_DIR=off``) it is a plain ``jax.jit``.
+
+``prepare`` traces (or reads back) and compiles the step for given inputs in a background
+thread, so that a robot's first window need not wait for all of it: the robot prepares its
+step while the LiDAR odometry runs over the first metres, and the first call waits for what
+is left.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import threading
 import uuid
 import warnings
 from pathlib import Path
@@ -36,6 +42,33 @@ def source_digest() -> str:
             h.update(p.read_bytes())
         _DIGEST.append(h.hexdigest())
     return _DIGEST[0]
+
+
+def _specs(leaves) -> tuple:
+    return tuple(jax.ShapeDtypeStruct(np.shape(x), jax.numpy.result_type(x)) for x in leaves)
+
+
+class _Pending:
+    """A call being made in a background thread. Not a daemon: a process that ends before its
+    first call (an error, a signal) waits for the compiler to finish rather than tear the
+    runtime down under it."""
+
+    def __init__(self, make):
+        self._out, self._err = None, None
+        self._thread = threading.Thread(target=self._run, args=(make,), name="mfcl-prepare")
+        self._thread.start()
+
+    def _run(self, make):
+        try:
+            self._out = make()
+        except BaseException as e:  # noqa: BLE001 - raised again in the caller's thread
+            self._err = e
+
+    def result(self):
+        self._thread.join()
+        if self._err is not None:
+            raise self._err
+        return self._out
 
 
 class Traced:
@@ -61,18 +94,37 @@ class Traced:
         self._calls: dict = {}
 
     def __call__(self, *args):
-        if self._folder is None:
-            return self._jit(*args)
         leaves, tree = jax.tree.flatten(args)
-        specs = tuple(jax.ShapeDtypeStruct(np.shape(x), jax.numpy.result_type(x)) for x in leaves)
-        key = (tree, specs)
+        key = (tree, _specs(leaves))
         call = self._calls.get(key)
         if call is None:
-            call = self._calls[key] = self._prepare(args, tree, specs)
+            call = self._calls[key] = self._make(args, tree, key[1], ahead=False)
+        elif isinstance(call, _Pending):
+            call = self._calls[key] = call.result()
         return call(leaves)
 
-    def _prepare(self, args, tree, specs):
-        """The call for inputs of this structure: read back, or exported and written."""
+    def prepare(self, *args) -> None:
+        """Trace (or read back) and compile the call for inputs shaped like ``args`` in a
+        background thread; the first call with such inputs waits for it (and raises what it
+        raised). Inputs of another shape are prepared at their first call, as before."""
+        leaves, tree = jax.tree.flatten(args)
+        key = (tree, _specs(leaves))
+        if key not in self._calls:
+            self._calls[key] = _Pending(lambda: self._make(args, tree, key[1], ahead=True))
+
+    @property
+    def n_programs(self) -> int:
+        """Input structures prepared or called so far (each its own program)."""
+        return len(self._calls)
+
+    def _make(self, args, tree, specs, ahead: bool):
+        """The call for inputs of this structure (compiled now if ``ahead``, else at its
+        first use): read back, or exported and written; a plain jit without a folder."""
+        if self._folder is None:
+            if ahead:
+                compiled = self._jit.lower(*args).compile()
+                return lambda leaves: compiled(*jax.tree.unflatten(tree, leaves))
+            return lambda leaves: self._jit(*jax.tree.unflatten(tree, leaves))
         out_tree = jax.tree.structure(self._out_like(*args))
         # which flat leaves belong to donated arguments
         counts = [len(jax.tree.leaves(a)) for a in args]
@@ -94,6 +146,8 @@ class Traced:
         run = jax.jit(lambda *leaves: exp.call(*leaves), donate_argnums=donate,
                       in_shardings=one, out_shardings=one,
                       compiler_options=self._options)  # fmt: skip
+        if ahead:
+            run = run.lower(*specs).compile()
         return lambda leaves: jax.tree.unflatten(out_tree, run(*leaves))
 
     @staticmethod

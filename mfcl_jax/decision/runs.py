@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import jax
 import numpy as np
 
+from mfcl_jax.background import Pending
 from mfcl_jax.decision import layer, rivals
 from mfcl_jax.decision.history import Caps
 from mfcl_jax.decision.inputs import RunInputs, run_inputs
@@ -101,7 +103,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
                 buildings_per_call: int = 8, progress=None,
                 rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS,
                 min_windows: int = 16, min_traj: int = 128, min_runs: int = 1,
-                buildings: Buildings | None = None, size_classes: bool = False):  # fmt: skip
+                buildings: Buildings | None = None, size_classes: bool = False,
+                prepare: bool = False):  # fmt: skip
     """Every lane's decision at every window of every run.
 
     Args:
@@ -118,10 +121,13 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         size_classes: without ``buildings``, decide the buildings of each ``size_class`` apart
             (their own grid and path image, one compilation per class), so that a small
             building's searches of the plan do not pay for the largest one's image.
+        prepare: only start compiling what these inputs need, in a background thread
+            (``background.Pending``), and return ``(None, timing)``: a later call with inputs
+            of the same shapes (any values) waits for that program instead of compiling.
 
     Returns:
         ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
-        ``{"compile_s", "run_s", "searches"}``.
+        ``{"compile_s", "run_s", "searches"}`` (``compile_s``: the wait for compilations).
     """
     rb = np.asarray(run_building)
     R, K = np.asarray(inputs.evidence.valid).shape
@@ -135,7 +141,8 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
                              dict(runs_per_call=runs_per_call,
                                   buildings_per_call=buildings_per_call,
                                   rival_params=rival_params, min_windows=min_windows,
-                                  min_traj=min_traj, min_runs=min_runs))  # fmt: skip
+                                  min_traj=min_traj, min_runs=min_runs,
+                                  prepare=prepare))  # fmt: skip
     # one grid bucket for every building: one compilation per capacity bucket
     if buildings is None:
         used = sorted(set(rb.tolist()))
@@ -176,12 +183,15 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         key = (caps, spec, n_img, rival_params, mp.label.shape, runs_per_call,
                None if fields is None else fields.hit.shape, kw)  # fmt: skip
         args = (mp, fields, bidx, p, lanes, ev)
+        t0 = time.perf_counter()
         if key not in _COMPILED:
-            t0 = time.perf_counter()
-            fn = jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
-            _COMPILED[key] = fn.lower(*args, caps=caps, spec=spec, n_img=n_img,
-                                      rp=rival_params).compile()  # fmt: skip
-            tm["compile_s"] += time.perf_counter() - t0
+            make = partial(_compile, args, caps, spec, n_img, rival_params)
+            _COMPILED[key] = Pending(make, "mfcl-compile") if prepare else make()
+        if prepare:
+            continue
+        if isinstance(_COMPILED[key], Pending):
+            _COMPILED[key] = _COMPILED[key].result()
+        tm["compile_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         dec = jax.block_until_ready(_COMPILED[key](*args))
         tm["run_s"] += time.perf_counter() - t0
@@ -195,6 +205,11 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
             progress(done)
     tm["searches"] = int(np.asarray(out.searched)[..., 0].sum()) if out is not None else 0
     return out, tm
+
+
+def _compile(args, caps, spec, n_img, rival_params):
+    fn = jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
+    return fn.lower(*args, caps=caps, spec=spec, n_img=n_img, rp=rival_params).compile()
 
 
 def size_class(floorplan, rival_params=rivals.DEFAULT_RIVALS) -> tuple[int, int]:
@@ -217,6 +232,8 @@ def _by_class(classes, inputs, rb, floorplans, params, lanes, spec, progress, kw
         step = None if progress is None else (lambda n, d=done: progress(d + n))
         dec, t = decide_runs(sub, local, [floorplans[b] for b in members], params, lanes, spec,
                              progress=step, **kw)  # fmt: skip
+        if dec is None:  # prepared only
+            continue
         if out is None:
             out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
         for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
@@ -245,7 +262,7 @@ def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
 def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
            primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
            buildings_per_call: int = 8, progress=None, size_classes: bool = False,
-           **floors):  # fmt: skip
+           prepare: bool = False, **floors):  # fmt: skip
     """Every lane's decision at every window of a ``WindowBatch``, as a table.
 
     Args:
@@ -256,6 +273,8 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
         ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
         primary, primary_set: the lane whose commits trigger the rival search.
         size_classes: decide each building size class apart (``decide_runs``).
+        prepare: only start compiling, in the background (``decide_runs``); returns
+            ``(None, timing)``.
         floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
             (``decide_runs``).
 
@@ -271,5 +290,7 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
     inputs = run_inputs(batch, cands, **steps)
     dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
                           buildings_per_call, progress, size_classes=size_classes,
-                          **floors)  # fmt: skip
+                          prepare=prepare, **floors)  # fmt: skip
+    if prepare:
+        return None, tm
     return to_frame(dec, spec, batch.runs.window_mask), tm

@@ -5,8 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import jax
+import numpy as np
 
-__all__ = ["Candidates", "REASONS"]
+__all__ = ["Candidates", "REASONS", "no_candidates"]
 
 
 # Why a submap produced no candidates (Candidates.reason); the decision layer reports DEFER.
@@ -39,3 +40,11 @@ class Candidates:
 jax.tree_util.register_dataclass(
     Candidates, data_fields=["pose", "score", "mask", "reason"], meta_fields=[]
 )
+
+
+def no_candidates(n: int, J: int) -> Candidates:
+    """``n`` submaps without candidates (host arrays, the front-end's shapes and dtypes)."""
+    return Candidates(
+        pose=np.zeros((n, J, 3), np.float32), score=np.full((n, J), -np.inf, np.float32),
+        mask=np.zeros((n, J), bool), reason=np.zeros(n, np.int32),
+    )  # fmt: skip

@@ -21,7 +21,7 @@ import numpy as np
 from mfcl_jax.frontend import params as fe_params
 from mfcl_jax.frontend import plan as fe_plan
 from mfcl_jax.frontend import registration
-from mfcl_jax.frontend.candidates import Candidates
+from mfcl_jax.frontend.candidates import Candidates, no_candidates
 from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps
 
 __all__ = ["FrontEnd"]
@@ -118,11 +118,8 @@ class FrontEnd:
         """
         sub = registration.sanitize_submaps(jax.tree.map(np.asarray, submaps))
         building = np.asarray(building, np.int64).reshape(-1)
-        n, J = sub.n, self.params.J
-        pose = np.zeros((n, J, 3), np.float32)
-        score = np.full((n, J), -np.inf, np.float32)
-        mask = np.zeros((n, J), bool)
-        reason = np.zeros(n, np.int32)
+        empty = no_candidates(sub.n, self.params.J)
+        pose, score, mask, reason = empty.pose, empty.score, empty.mask, empty.reason
         done = 0
         for b in np.unique(building):
             rows = np.flatnonzero(building == b)

@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import hashlib
 import os
-import threading
 import uuid
 import warnings
 from pathlib import Path
 
 import jax
 import numpy as np
+
+from mfcl_jax.background import Pending
 
 __all__ = ["Traced", "source_digest"]
 
@@ -46,29 +47,6 @@ def source_digest() -> str:
 
 def _specs(leaves) -> tuple:
     return tuple(jax.ShapeDtypeStruct(np.shape(x), jax.numpy.result_type(x)) for x in leaves)
-
-
-class _Pending:
-    """A call being made in a background thread. Not a daemon: a process that ends before its
-    first call (an error, a signal) waits for the compiler to finish rather than tear the
-    runtime down under it."""
-
-    def __init__(self, make):
-        self._out, self._err = None, None
-        self._thread = threading.Thread(target=self._run, args=(make,), name="mfcl-prepare")
-        self._thread.start()
-
-    def _run(self, make):
-        try:
-            self._out = make()
-        except BaseException as e:  # noqa: BLE001 - raised again in the caller's thread
-            self._err = e
-
-    def result(self):
-        self._thread.join()
-        if self._err is not None:
-            raise self._err
-        return self._out
 
 
 class Traced:
@@ -99,7 +77,7 @@ class Traced:
         call = self._calls.get(key)
         if call is None:
             call = self._calls[key] = self._make(args, tree, key[1], ahead=False)
-        elif isinstance(call, _Pending):
+        elif isinstance(call, Pending):
             call = self._calls[key] = call.result()
         return call(leaves)
 
@@ -110,7 +88,7 @@ class Traced:
         leaves, tree = jax.tree.flatten(args)
         key = (tree, _specs(leaves))
         if key not in self._calls:
-            self._calls[key] = _Pending(lambda: self._make(args, tree, key[1], ahead=True))
+            self._calls[key] = Pending(lambda: self._make(args, tree, key[1], ahead=True))
 
     @property
     def n_programs(self) -> int:

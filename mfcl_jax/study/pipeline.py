@@ -148,11 +148,18 @@ def decide(
     progress=True,
     batch=None,
     ours=COUNT_VARIANTS,
-) -> pd.DataFrame:
+    prepare=False,
+    **floors,
+) -> pd.DataFrame | None:
     """Every lane's decision (``ours`` and the baselines) at every window of every run, in
-    one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset)."""
+    one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset);
+    ``prepare``: only start compiling (``decision.runs.decide``), returns None; ``floors``:
+    ``decide``'s."""
     batch = batch or data.batch
-    df, tm = decision_runs.decide(batch, cands, data.floorplans, params, ours=ours)
+    df, tm = decision_runs.decide(batch, cands, data.floorplans, params, ours=ours,
+                                  prepare=prepare, **floors)  # fmt: skip
+    if prepare:
+        return None
     note = f"{batch.runs.n_runs} runs x {batch.runs.n_windows} windows, {tm['searches']} searches"
     timings.add(label, tm["compile_s"], tm["run_s"], note)
     log(f"[{label}] {note}: compile {tm['compile_s']:.1f} s, run {tm['run_s']:.1f} s", progress)

@@ -12,6 +12,7 @@ import pandas as pd
 
 from mfcl_jax.config import StudyConfig
 from mfcl_jax.decision.lanes import STRICT_IOU
+from mfcl_jax.frontend.candidates import no_candidates
 from mfcl_jax.report import tables
 from mfcl_jax.study import density, pipeline, report
 
@@ -20,8 +21,8 @@ __all__ = ["run_study", "merge"]
 RAW = "windows.csv.gz"
 
 
-def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
-    """The density-immunity table for ``cfg.density_run`` (``traj@d_s``) at the main seed."""
+def _density_run(data, cfg: StudyConfig) -> int | None:
+    """The run of ``cfg.density_run`` (``traj@d_s``) at the main seed (None: not simulated)."""
     traj, ds = cfg.density_run.split("@")
     sel = data.runs[
         (data.runs["scene"] == "three_rooms")
@@ -29,25 +30,49 @@ def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
         & (data.runs["d_s"] == float(ds))
         & (data.runs["seed"] == cfg.main_seed)
     ]
-    if not len(sel):
-        return None
-    run = int(sel["run"].iloc[0])
-    ours = scored[(scored["run"] == run) & (scored["policy"] == "ours")].sort_values("k")
-    com = ours[ours["state"] == "COMMIT"]
-    k_star = int(com["k"].iloc[0]) if len(com) else int(ours["k"].max())
-    # One batch of two copies of the run (original, flooded) padded to one candidate count:
-    # one compiled call decides both.
+    return int(sel["run"].iloc[0]) if len(sel) else None
+
+
+def _density_inputs(data, cands, cfg: StudyConfig, run: int):
+    """One batch of two copies of ``run`` (original, flooded) padded to one candidate count,
+    so one compiled call decides both, and the floors (``decide``'s ``min_*``) that give it
+    the shapes of every window whatever window it is later cut at: ``(batch, recs, runs,
+    one, flooded, both, floors)``."""
+    from mfcl_jax.decision.inputs import run_inputs
+
     batch, recs, runs, _ = density.subset(data, cands, [run, run])
     one = density.subset(data, cands, [run])[3]
     flooded = density.flood(one, cfg.density_factor, seed=cfg.main_seed)
     both = density.stack_copies(one, flooded)
+    ev = run_inputs(batch, both).evidence
+    k = -(-int(ev.valid.shape[1]) // 16) * 16  # decide_runs' bucket of the windows
+    floors = dict(min_windows=k, min_step=int(ev.traj_mask.shape[2]),
+                  min_head=int(ev.head_mask.shape[2]))  # fmt: skip
+    return batch, recs, runs, one, flooded, both, floors
+
+
+def _density(data, cands, scored, cfg: StudyConfig, tm, prepare=False) -> pd.DataFrame | None:
+    """The density-immunity table for ``cfg.density_run`` at the main seed (``prepare``:
+    only start compiling its decision, in the background; ``cands`` need only their shapes,
+    ``scored`` is not read)."""
+    run = _density_run(data, cfg)
+    if run is None:
+        return None
+    batch, recs, runs, one, flooded, both, floors = _density_inputs(data, cands, cfg, run)
+    if prepare:
+        pipeline.decide(data, both, cfg.decision, tm, label="density", batch=batch,
+                        ours=("ours",), prepare=True, **floors)  # fmt: skip
+        return None
+    ours = scored[(scored["run"] == run) & (scored["policy"] == "ours")].sort_values("k")
+    com = ours[ours["state"] == "COMMIT"]
+    k_star = int(com["k"].iloc[0]) if len(com) else int(ours["k"].max())
     # Only windows up to our commit window: the pool is the one the decision saw.
     wm = np.asarray(batch.runs.window_mask).copy()
     wm[:, k_star:] = False
     rb = batch.runs
     batch = replace(batch, runs=replace(rb, window_mask=wm))
     w = pipeline.decide(data, both, cfg.decision, tm, label="density", progress=cfg.progress,
-                        batch=batch, ours=("ours",))  # fmt: skip
+                        batch=batch, ours=("ours",), **floors)  # fmt: skip
     scored_both = pipeline.score(data, w, batch, recs, runs)
     frames = [scored_both[scored_both["run"] == r] for r in (0, 1)]
     rows = np.asarray(rb.submap)[0, :k_star]
@@ -67,6 +92,12 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     t_start = time.perf_counter()
     seeds = list(range(cfg.seed0, cfg.seed0 + cfg.seeds))
     data = pipeline.prepare(cfg.scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress, cfg.window)
+    # The decision programs need the candidates' shapes only: they compile in the background
+    # while the front-end registers (``background``), and the decisions wait for them.
+    shaped = no_candidates(data.batch.submaps.n, cfg.frontend.J)
+    pipeline.decide(data, shaped, cfg.decision, tm, prepare=True)
+    if "three_rooms" in cfg.scenes:
+        _density(data, shaped, None, cfg, tm, prepare=True)
     cands = pipeline.register_all(data, cfg.frontend, tm, cfg.progress)
     windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
     scored = pipeline.score(data, windows)

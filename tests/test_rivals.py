@@ -195,7 +195,7 @@ def test_robot_and_batch_search_at_the_same_windows_and_agree():
     (``decision.runs``: every run scanned at once) search for rivals at the same windows
     (where the layer is about to commit) and report the same decisions."""
     from mfcl_jax import windows as W
-    from mfcl_jax.decision.runs import decide
+    from mfcl_jax.decision.frame import decide
     from mfcl_jax.frontend.driver import FrontEnd
     from mfcl_jax.robot.localizer import Localizer
     from mfcl_jax.sim.scenes import three_rooms as scene_three_rooms
@@ -226,7 +226,7 @@ def test_buildings_decided_by_size_class_as_on_one_grid():
     cost follows the building, its answers do not."""
     from mfcl_jax.decision import make_lanes
     from mfcl_jax.decision.inputs import RunInputs
-    from mfcl_jax.decision.runs import decide_runs, size_class
+    from mfcl_jax.decision.runs import TRACES, decide_runs, size_class, wait_prepared
 
     small = row_of_rooms(widths=(PITCH, 9.0, 5.5))
     large = row_of_rooms(widths=(PITCH, 9.0, 5.5, 8.0, 6.5, 9.5))
@@ -246,8 +246,17 @@ def test_buildings_decided_by_size_class_as_on_one_grid():
     building = np.asarray([1, 0, 0])  # floorplans below: small, large
     done = []
     one, _ = decide_runs(inputs, building, [small, large], p, lanes, spec, min_traj=256)
+    # the classes' programs compiled in the background first (any values, the same shapes)
+    # and then used: one trace each, none at the call
+    before = TRACES["scan_runs"]
+    blank = RunInputs(jax.tree.map(np.zeros_like, ev), n, n, inputs.seg_keyframes)
+    assert decide_runs(blank, building, [small, large], p, lanes, spec, min_traj=256,
+                       size_classes=True, prepare=True)[0] is None  # fmt: skip
+    wait_prepared()
+    assert TRACES["scan_runs"] == before + 2
     split, tm = decide_runs(inputs, building, [small, large], p, lanes, spec, min_traj=256,
                             size_classes=True, progress=done.append)  # fmt: skip
+    assert TRACES["scan_runs"] == before + 2
     assert done[-1] == len(runs)
     # the comparison includes commits in both buildings (the far walk lies outside the small
     # building: a run decided on the wrong grid would not commit)

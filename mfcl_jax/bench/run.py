@@ -230,7 +230,7 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
         odometric distance travelled by the window's end, ``window_metres``: the same for every
         policy, the particle filter's rows included) and the run's meta.
     """
-    from mfcl_jax.decision.runs import decide
+    from mfcl_jax.decision.frame import decide
     from mfcl_jax.frontend.candidates import Candidates
     from mfcl_jax.score import score_batch
 

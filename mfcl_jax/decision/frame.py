@@ -1,4 +1,5 @@
-"""Decisions as a table: one row per run x window x threshold set x lane (host, pandas).
+"""Decisions as a table: one row per run x window x threshold set x lane (host, pandas);
+``decide`` makes the table of a ``WindowBatch``.
 
 Made after the jitted work from a ``Decision`` with leaves ``(R, K, L, ...)``: names for the
 codes, NaN where a column does not apply.
@@ -10,9 +11,12 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax.decision import lattice
+from mfcl_jax.decision.inputs import run_inputs
+from mfcl_jax.decision.lanes import make_lanes
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
+from mfcl_jax.decision.runs import decide_runs
 
-__all__ = ["to_frame", "names"]
+__all__ = ["to_frame", "names", "decide"]
 
 
 def names(table: dict, codes) -> np.ndarray:
@@ -81,3 +85,38 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
     if window_mask is not None:
         df = df[np.asarray(window_mask)[ir, ik]].reset_index(drop=True)
     return df
+
+
+def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
+           primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
+           buildings_per_call: int = 8, progress=None, size_classes: bool = False,
+           prepare: bool = False, **floors):  # fmt: skip
+    """Every lane's decision at every window of a ``WindowBatch``, as a table
+    (``runs.decide_runs`` on ``inputs.run_inputs``, then ``to_frame``).
+
+    Args:
+        batch: ``windows.WindowBatch`` (with its evidence samples; points not needed).
+        cands: ``Candidates`` of ``batch.submaps`` (host).
+        floorplans: ``Floorplan`` per building index.
+        params: one ``DecisionParams`` or a list of threshold sets (``lanes.make_lanes``).
+        ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
+        primary, primary_set: the lane whose commits trigger the rival search.
+        size_classes: decide each building size class apart (``decide_runs``).
+        prepare: only start compiling, in the background (``decide_runs``); returns
+            ``(None, timing)``.
+        floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
+            (``decide_runs``).
+
+    Returns:
+        ``(frame, timing)``: ``to_frame``'s rows for the batch's valid windows and
+        ``decide_runs``'s timing.
+    """
+    p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
+    steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
+    inputs = run_inputs(batch, cands, **steps)
+    dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
+                          buildings_per_call, progress, size_classes=size_classes,
+                          prepare=prepare, **floors)  # fmt: skip
+    if prepare:
+        return None, tm
+    return to_frame(dec, spec, batch.runs.window_mask), tm

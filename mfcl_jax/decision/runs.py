@@ -18,13 +18,13 @@ import numpy as np
 from mfcl_jax.background import Pending
 from mfcl_jax.decision import layer, rivals
 from mfcl_jax.decision.history import Caps
-from mfcl_jax.decision.inputs import RunInputs, run_inputs
+from mfcl_jax.decision.inputs import RunInputs
 from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import decision_maps, stack_maps
 from mfcl_jax.decision.params import DecisionParams
 
-__all__ = ["Buildings", "stack_buildings", "size_class", "scan_runs",
-           "decide_runs", "decide", "chunks"]  # fmt: skip
+__all__ = ["Buildings", "stack_buildings", "size_class", "scan_runs", "decide_runs",
+           "wait_prepared", "chunks"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -207,6 +207,13 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     return out, tm
 
 
+def wait_prepared() -> None:
+    """Waits for every compilation started by ``decide_runs(prepare=True)``."""
+    for key, c in list(_COMPILED.items()):
+        if isinstance(c, Pending):
+            _COMPILED[key] = c.result()
+
+
 def _compile(args, caps, spec, n_img, rival_params):
     fn = jax.jit(scan_runs, static_argnames=("caps", "spec", "n_img", "rp"))
     return fn.lower(*args, caps=caps, spec=spec, n_img=n_img, rp=rival_params).compile()
@@ -257,40 +264,3 @@ def _pad_rows(a: np.ndarray, n: int) -> np.ndarray:
     if a.shape[0] >= n:
         return a
     return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
-
-
-def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
-           primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
-           buildings_per_call: int = 8, progress=None, size_classes: bool = False,
-           prepare: bool = False, **floors):  # fmt: skip
-    """Every lane's decision at every window of a ``WindowBatch``, as a table.
-
-    Args:
-        batch: ``windows.WindowBatch`` (with its evidence samples; points not needed).
-        cands: ``Candidates`` of ``batch.submaps`` (host).
-        floorplans: ``Floorplan`` per building index.
-        params: one ``DecisionParams`` or a list of threshold sets (``lanes.lanes``).
-        ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
-        primary, primary_set: the lane whose commits trigger the rival search.
-        size_classes: decide each building size class apart (``decide_runs``).
-        prepare: only start compiling, in the background (``decide_runs``); returns
-            ``(None, timing)``.
-        floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
-            (``decide_runs``).
-
-    Returns:
-        ``(frame, timing)``: ``frame.to_frame``'s rows for the batch's valid windows and
-        ``decide_runs``'s timing.
-    """
-    from mfcl_jax.decision.frame import to_frame
-    from mfcl_jax.decision.lanes import make_lanes
-
-    p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
-    steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
-    inputs = run_inputs(batch, cands, **steps)
-    dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
-                          buildings_per_call, progress, size_classes=size_classes,
-                          prepare=prepare, **floors)  # fmt: skip
-    if prepare:
-        return None, tm
-    return to_frame(dec, spec, batch.runs.window_mask), tm

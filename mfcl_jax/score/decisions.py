@@ -148,7 +148,7 @@ def score_decisions(
 
 
 def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> pd.DataFrame:
-    """Scores a decision table of a ``WindowBatch`` (``decision.runs.decide``'s frame).
+    """Scores a decision table of a ``WindowBatch`` (``decision.frame.decide``'s frame).
 
     Window ``k`` of run ``r`` is decided at the time of its last scan; every run is scored
     against the odometry the layer used (its windows' keyframe odometry) and its recording's

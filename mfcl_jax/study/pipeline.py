@@ -18,7 +18,7 @@ import pandas as pd
 
 from mfcl_jax import se2
 from mfcl_jax import windows as W
-from mfcl_jax.decision import runs as decision_runs
+from mfcl_jax.decision import frame as decision_frame
 from mfcl_jax.decision.lanes import COUNT_VARIANTS, OURS_VARIANTS
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend.candidates import Candidates
@@ -153,10 +153,10 @@ def decide(
 ) -> pd.DataFrame | None:
     """Every lane's decision (``ours`` and the baselines) at every window of every run, in
     one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset);
-    ``prepare``: only start compiling (``decision.runs.decide``), returns None; ``floors``:
+    ``prepare``: only start compiling (``decision.frame.decide``), returns None; ``floors``:
     ``decide``'s."""
     batch = batch or data.batch
-    df, tm = decision_runs.decide(batch, cands, data.floorplans, params, ours=ours,
+    df, tm = decision_frame.decide(batch, cands, data.floorplans, params, ours=ours,
                                   prepare=prepare, **floors)  # fmt: skip
     if prepare:
         return None

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from mfcl_jax.config import StudyConfig
+from mfcl_jax.decision.inputs import run_inputs
 from mfcl_jax.decision.lanes import STRICT_IOU
 from mfcl_jax.frontend.candidates import no_candidates
 from mfcl_jax.report import tables
@@ -38,8 +39,6 @@ def _density_inputs(data, cands, cfg: StudyConfig, run: int):
     so one compiled call decides both, and the floors (``decide``'s ``min_*``) that give it
     the shapes of every window whatever window it is later cut at: ``(batch, recs, runs,
     one, flooded, both, floors)``."""
-    from mfcl_jax.decision.inputs import run_inputs
-
     batch, recs, runs, _ = density.subset(data, cands, [run, run])
     one = density.subset(data, cands, [run])[3]
     flooded = density.flood(one, cfg.density_factor, seed=cfg.main_seed)

@@ -198,6 +198,28 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
     assert fam.loc["all", "median_delay_m"] == pytest.approx((2.5 + 6.0) / 2)
 
 
+def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors():
+    """Windows where the uniqueness test ran unvetoed, binned by ratio (edges at the lanes'
+    thresholds, +inf in the last bin); vetoed (-inf), untested (NaN) and unjudged windows and
+    other policies are left out; fault rows are counted apart."""
+    from mfcl_jax.bench.calibration import EDGES, ratio_calibration
+
+    lane = "ours_unique_a6"
+    rows = [  # policy, fault, llr, correct
+        (lane, None, 0.5, True), (lane, None, 0.5, False), (lane, None, 3.5, False),
+        (lane, None, 5.0, True), (lane, None, np.inf, True), (lane, None, -np.inf, False),
+        (lane, None, np.nan, False), (lane, None, 2.5, None), ("ours", None, 5.0, False),
+        (lane, "drift", 5.0, False),
+    ]  # fmt: skip
+    w = pd.DataFrame(rows, columns=["policy", "fault", "llr", "correct"])
+    t = ratio_calibration(w)
+    assert len(t) == len(EDGES) - 1 and t["bound"].iloc[0] == 1.0
+    assert t["windows"].tolist() == [2, 0, 0, 1, 1, 0, 0, 1]
+    assert t["wrong"].tolist() == [1, 0, 0, 1, 0, 0, 0, 0]
+    assert t["fault_windows"].sum() == 1 and t["fault_wrong"].tolist()[4] == 1
+    assert t["bound"].iloc[4] == pytest.approx(1e-2)
+
+
 def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
     """Right COMMIT windows give the largest errors and share of the 1 m / 5 deg line; a window
     past the line counts as wrong and is left out of the maxima; non-COMMIT windows and other

@@ -203,17 +203,20 @@ class Localizer:
     def run(self, seq) -> Iterator[WindowResult]:
         """Streams the windows of ``seq``; yields one ``WindowResult`` per window, each as
         soon as its keyframes are refined and it is decided."""
-        return self.follow([seq])
+        return self.follow([seq], prepare=self.estimate(seq) > 0)
 
-    def follow(self, prefixes) -> Iterator[WindowResult]:
+    def follow(self, prefixes, prepare: bool = True) -> Iterator[WindowResult]:
         """Streams the windows of a recording that grows (the live path).
 
         Args:
             prefixes: ever longer ``ScanSequence``s of one recording, each extending the one
                 before; every window complete in a prefix and not yet seen is decided.
                 Windows are causal, so the results are ``run``'s on the last prefix.
+            prepare: compile the step in the background from the start (``_prepare``); off
+                where no window is expected, so that nothing is compiled for nothing.
         """
-        self._prepare()
+        if prepare:
+            self._prepare()
         cutter = W.Cutter(self.params.window)
         world, memory, prev_end, seg, base, k = None, None, -1, None, 0, 0
         step = self.params.caps.step

@@ -95,7 +95,8 @@ _COMPILED: dict = {}
 
 
 def _bucket(n: int, minimum: int, step: int) -> int:
-    return max(minimum, -(-int(n) // step) * step)
+    """``max(n, minimum)`` rounded up to a multiple of ``step`` (a floor need not be one)."""
+    return -(-max(int(n), int(minimum)) // step) * step
 
 
 def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,

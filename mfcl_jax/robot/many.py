@@ -54,7 +54,7 @@ def _floors(seqs, p: W.WindowParams) -> dict:
             step = max(step, int(np.max(np.diff(b[:, 1]), initial=0)))
             head = max(head, int(np.max(b[:, 1] - b[:, 0] + 1)))
     step = -(-step // 16) * 16
-    return dict(min_windows=-(-n_win // 16) * 16, min_traj=-(-n_kf // 64) * 64, min_step=step,
+    return dict(min_windows=n_win, min_traj=n_kf, min_step=step,
                 min_head=-(-max(head - step, 0) // 16) * 16)  # fmt: skip
 
 

@@ -44,8 +44,7 @@ def _density_inputs(data, cands, cfg: StudyConfig, run: int):
     flooded = density.flood(one, cfg.density_factor, seed=cfg.main_seed)
     both = density.stack_copies(one, flooded)
     ev = run_inputs(batch, both).evidence
-    k = -(-int(ev.valid.shape[1]) // 16) * 16  # decide_runs' bucket of the windows
-    floors = dict(min_windows=k, min_step=int(ev.traj_mask.shape[2]),
+    floors = dict(min_windows=int(ev.valid.shape[1]), min_step=int(ev.traj_mask.shape[2]),
                   min_head=int(ev.head_mask.shape[2]))  # fmt: skip
     return batch, recs, runs, one, flooded, both, floors
 

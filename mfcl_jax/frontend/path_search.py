@@ -57,8 +57,10 @@ def _score(g, pts, pok, frees, fok, fields, lam):
     """Fine score of placement ``g (3,)``: mean hit of points minus ``lam`` mean bad."""
     hit = sample_field(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
     bad = sample_field(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
-    mh = jnp.sum(jnp.where(pok, hit, 0.0)) / jnp.maximum(jnp.sum(pok), 1).astype(hit.dtype)
-    mb = jnp.sum(jnp.where(fok, bad, 0.0)) / jnp.maximum(jnp.sum(fok), 1).astype(bad.dtype)
+    # sums as dot products with the masks: XLA:CPU runs a reduction fused with the lookups'
+    # gathers as a scalar loop, a dot it does not fuse (4x faster on the polish's batches)
+    mh = jnp.dot(hit, pok.astype(hit.dtype)) / jnp.maximum(jnp.sum(pok), 1).astype(hit.dtype)
+    mb = jnp.dot(bad, fok.astype(bad.dtype)) / jnp.maximum(jnp.sum(fok), 1).astype(bad.dtype)
     return mh - lam * mb
 
 
@@ -100,7 +102,10 @@ def map_peaks(sc, th, plan_shape, n_img: int, res: float, origin, k: int):
     cx = sx[None, :] + n_img // 2
     inside = (cy >= 0) & (cy < hc) & (cx >= 0) & (cx < wc)
     sc = jnp.where(inside, sc, -jnp.inf)
-    pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 5), (1, 1), "SAME")
+    # the 5 x 5 maximum as a 5 x 1 then a 1 x 5 one: the same values (max is exact), 8x faster
+    # on XLA:CPU, where a 2-D window costs 25 compares per cell
+    pooled = jax.lax.reduce_window(sc, -jnp.inf, jax.lax.max, (5, 1), (1, 1), "SAME")
+    pooled = jax.lax.reduce_window(pooled, -jnp.inf, jax.lax.max, (1, 5), (1, 1), "SAME")
     peak = jnp.where(sc >= pooled, sc, -jnp.inf).reshape(-1)
     val, idx = jax.lax.top_k(peak, k)
     iy, ix = idx // fw, idx % fw

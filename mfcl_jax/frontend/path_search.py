@@ -59,8 +59,12 @@ def _score(g, pts, pok, frees, fok, fields, lam):
     bad = sample_field(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
     # sums as dot products with the masks: XLA:CPU runs a reduction fused with the lookups'
     # gathers as a scalar loop, a dot it does not fuse (4x faster on the polish's batches)
-    mh = jnp.dot(hit, pok.astype(hit.dtype)) / jnp.maximum(jnp.sum(pok), 1).astype(hit.dtype)
-    mb = jnp.dot(bad, fok.astype(bad.dtype)) / jnp.maximum(jnp.sum(fok), 1).astype(bad.dtype)
+    mh = jnp.dot(jnp.where(pok, hit, 0.0), pok.astype(hit.dtype)) / jnp.maximum(
+        jnp.sum(pok), 1
+    ).astype(hit.dtype)
+    mb = jnp.dot(jnp.where(fok, bad, 0.0), fok.astype(bad.dtype)) / jnp.maximum(
+        jnp.sum(fok), 1
+    ).astype(bad.dtype)
     return mh - lam * mb
 
 

@@ -192,6 +192,13 @@ def _mean(v, ok):
     return jnp.sum(jnp.where(ok, v, 0.0)) / jnp.maximum(jnp.sum(ok).astype(v.dtype), 1.0)
 
 
+def _dot_mean(v, ok):
+    """``_mean`` as a dot product with the mask: XLA:CPU runs a sum fused with the lookups'
+    gathers as a scalar loop, a dot it keeps apart (``path_search._score``)."""
+    w = ok.astype(v.dtype)
+    return jnp.dot(jnp.where(ok, v, 0.0), w) / jnp.maximum(jnp.sum(w), 1.0)
+
+
 def occupancy(pose, pts, ok, feats, sigma, rot=None):
     """First term of ``s``: mean wall-surface kernel over the occupied points, in [0, 1].
 
@@ -236,7 +243,7 @@ def score_fields(pose, pts, ok, q, q_ok, origin, res, sdf4, pen4, sigma, lam):
     """``score`` with the fields given explicitly (``origin (2,)``, static ``res``, ``sdf4``,
     ``pen4``), for callers that hold them outside ``FloorplanFeatures`` (the certification)."""
     hit, pen = point_terms(pose, pts, q, origin, res, sdf4, pen4, sigma)
-    return _mean(hit, ok) - lam * _mean(pen, q_ok)
+    return _dot_mean(hit, ok) - lam * _dot_mean(pen, q_ok)
 
 
 def block_scores(hit, pen, ok, q_ok, n_blocks: int, lam):

@@ -131,8 +131,7 @@ def log_likelihood(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRPa
     f = jnp.log((1.0 - p.z_rand) * jnp.exp(-d * d / (2.0 * p.sigma**2)) + p.z_rand)
     b = sample_field(fields.bad, fields.origin, fields.res, se2.apply(a, pe.free), 1.0)
     g = jnp.log(1.0 - p.z_block * jnp.clip(b, 0.0, 1.0))
-    # weighted sums as dot products: unfused from the lookups' gathers (``path_search._score``)
-    return jnp.dot(pe.pw, f) + jnp.dot(pe.fw, g)
+    return jnp.sum(pe.pw * f) + jnp.sum(pe.fw * g)
 
 
 def _polish(a, pe, fields, p, step_xy, step_deg):

@@ -66,3 +66,21 @@ def test_a_building_added_later_gets_its_own_bucket(run):
     shared = fe.features(0).sdf4.shape
     b = fe.add(get_scene("symmetric_bays").floorplan)
     assert fe.features(b).sdf4.shape != shared
+
+
+def test_a_prepared_call_is_the_one_register_uses(run):
+    """``FrontEnd.prepare`` compiles the call for a point capacity in the background (the
+    study does it while it simulates); a ``register`` of that shape waits for it instead of
+    tracing and compiling its own, and gives the same candidates."""
+    from mfcl_jax.background import Pending
+
+    fps, subs, building, _, c, _ = run
+    fe = FrontEnd(fps, chunk=2)
+    before = registration.TRACE_COUNT[0]
+    fe.prepare(P)
+    assert isinstance(next(iter(fe._compiled.values())), Pending)
+    got = fe.register(batch(subs, P), building)
+    assert registration.TRACE_COUNT[0] - before == 1  # the prepared trace only
+    assert len(fe._compiled) == 1
+    np.testing.assert_array_equal(got.pose, c.pose)
+    np.testing.assert_array_equal(got.score, c.score)

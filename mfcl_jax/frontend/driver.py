@@ -18,6 +18,7 @@ import time
 import jax
 import numpy as np
 
+from mfcl_jax.background import Pending
 from mfcl_jax.frontend import params as fe_params
 from mfcl_jax.frontend import plan as fe_plan
 from mfcl_jax.frontend import registration
@@ -32,6 +33,16 @@ def _pow2(n: int, minimum: int) -> int:
     while out < n:
         out *= 2
     return out
+
+
+def _blank_submaps() -> SubmapBatch:
+    """No submaps, with the dtypes ``windows.pack`` gives (``pad_submaps`` sizes them)."""
+    return SubmapBatch(
+        points=np.zeros((0, 0, 2), np.float32), origins=np.zeros((0, 0, 2), np.float32),
+        mask=np.zeros((0, 0), bool), X=np.zeros((0, 3), np.float32),
+        run=np.zeros(0, np.int32), window=np.zeros(0, np.int32), t=np.zeros(0, np.float64),
+        n_dropped=np.zeros(0, np.int32),
+    )  # fmt: skip
 
 
 class FrontEnd:
@@ -93,11 +104,29 @@ class FrontEnd:
         else:
             self._feats.pop(b, None)
 
-    def _call(self, sub: SubmapBatch, feats) -> Candidates:
-        key = (sub.points.shape, feats.sdf4.shape, feats.corner_pos.shape, feats.rasters.n_rooms)
+    @staticmethod
+    def _key(sub: SubmapBatch, feats) -> tuple:
+        return (sub.points.shape, feats.sdf4.shape, feats.corner_pos.shape, feats.rasters.n_rooms)
+
+    def prepare(self, n_points: int, building: int = 0) -> None:
+        """Starts compiling, in a background thread (``background.Pending``), the call that
+        registers chunks of submaps of ``n_points`` points (a ``windows.pack`` capacity) in
+        building ``building``'s bucket; a ``register`` of that shape then waits for it instead
+        of compiling, one of any other shape compiles as usual."""
+        sub = pad_submaps(_blank_submaps(), n=self.chunk, p=int(n_points))
+        feats = self.features(int(building))
+        key = self._key(sub, feats)
         if key not in self._compiled:
+            self._compiled[key] = Pending(lambda: self._fn.lower(sub, feats).compile(),
+                                          "mfcl-compile")  # fmt: skip
+
+    def _call(self, sub: SubmapBatch, feats) -> Candidates:
+        key = self._key(sub, feats)
+        if key not in self._compiled or isinstance(self._compiled[key], Pending):
             t0 = time.perf_counter()
-            self._compiled[key] = self._fn.lower(sub, feats).compile()
+            c = self._compiled.get(key)  # a Pending from ``prepare``, or nothing yet
+            c = c.result() if c is not None else self._fn.lower(sub, feats).compile()
+            self._compiled[key] = c
             self.compile_s += time.perf_counter() - t0
         t0 = time.perf_counter()
         out = jax.block_until_ready(self._compiled[key](sub, feats))

@@ -28,7 +28,10 @@ from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.sources.simulated import simulate
 
-__all__ = ["Timings", "StudyData", "prepare", "register_all", "decide", "score", "log"]
+__all__ = ["Timings", "StudyData", "frontend", "prepare", "register_all", "decide", "score", "log",
+           "CHUNK"]  # fmt: skip
+
+CHUNK = 32  # submaps per front-end call
 
 
 @dataclass
@@ -85,15 +88,26 @@ def log(msg: str, on: bool = True) -> None:
         print(msg, file=sys.stderr, flush=True)
 
 
-def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True, window=None):
+def frontend(scenes, params) -> FrontEnd:
+    """The study's front-end: the plans of ``scenes`` (``Scene``s) in one shape bucket,
+    ``CHUNK`` submaps per call."""
+    return FrontEnd([s.floorplan for s in scenes], params, chunk=CHUNK)
+
+
+def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True, window=None,
+            fe: FrontEnd | None = None):  # fmt: skip
     """Simulates every (scene, trajectory, seed), cuts windows for every ``d_s``.
 
-    Runs are ordered scene, then trajectory, then ``d_s``, then seed.
+    Runs are ordered scene, then trajectory, then ``d_s``, then seed. ``scenes``: names or
+    ``Scene``s. ``fe``: the ``frontend`` that will register the windows; once the first
+    scene's windows are cut, it starts compiling its call for their point capacity in the
+    background (``FrontEnd.prepare``), while the other scenes are simulated.
     """
     window = window or W.WindowParams()
     items, recs, rows, objs = [], [], [], []
-    for b, name in enumerate(scenes):
-        scene = get_scene(name)
+    for b, scene in enumerate(scenes):
+        scene = get_scene(scene) if isinstance(scene, str) else scene
+        name = scene.name
         objs.append(scene)
         t0 = time.perf_counter()
         sims = simulate(scene, seeds=seeds, params=sim)
@@ -119,6 +133,9 @@ def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True,
             )
             items.append((rec.seq, w, b))
             recs.append(rec)
+        if fe is not None and b == 0:  # ``W.pack``'s capacity, unless a later scene is fuller
+            most = max((len(p) for w in wins for p in w.points), default=0)
+            fe.prepare(W.bucket(most))
         dt = time.perf_counter() - t0
         n_sub = sum(len(w) for _, w, _ in items[n0:])
         timings.add(f"simulate {name}", 0.0, dt, f"{len(items) - n0} runs, {n_sub} submaps")
@@ -126,9 +143,8 @@ def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True,
     return StudyData(W.pack(items), recs, pd.DataFrame(rows), objs)
 
 
-def register_all(data: StudyData, params, timings: Timings, progress=True) -> Candidates:
-    """Runs the front-end on every submap of the study."""
-    fe = FrontEnd(data.floorplans, params, chunk=32)
+def register_all(data: StudyData, fe: FrontEnd, timings: Timings, progress=True) -> Candidates:
+    """Runs the front-end ``fe`` (``frontend``) on every submap of the study."""
     t0 = time.perf_counter()
     cands = fe.register(data.batch.submaps, data.batch.building)
     n = data.batch.submaps.n

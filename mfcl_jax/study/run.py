@@ -15,6 +15,7 @@ from mfcl_jax.decision.inputs import run_inputs
 from mfcl_jax.decision.lanes import STRICT_IOU
 from mfcl_jax.frontend.candidates import no_candidates
 from mfcl_jax.report import tables
+from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.study import density, pipeline, report
 
 __all__ = ["run_study", "merge"]
@@ -89,14 +90,18 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     tm = pipeline.Timings()
     t_start = time.perf_counter()
     seeds = list(range(cfg.seed0, cfg.seed0 + cfg.seeds))
-    data = pipeline.prepare(cfg.scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress, cfg.window)
+    # The front-end's call compiles in the background while the later scenes are simulated
+    # (``pipeline.prepare``), the decision programs while the front-end registers.
+    scenes = [get_scene(name) for name in cfg.scenes]
+    fe = pipeline.frontend(scenes, cfg.frontend)
+    data = pipeline.prepare(scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress, cfg.window, fe)
     # The decision programs need the candidates' shapes only: they compile in the background
     # while the front-end registers (``background``), and the decisions wait for them.
     shaped = no_candidates(data.batch.submaps.n, cfg.frontend.J)
     pipeline.decide(data, shaped, cfg.decision, tm, prepare=True)
     if "three_rooms" in cfg.scenes:
         _density(data, shaped, None, cfg, tm, prepare=True)
-    cands = pipeline.register_all(data, cfg.frontend, tm, cfg.progress)
+    cands = pipeline.register_all(data, fe, tm, cfg.progress)
     windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
     scored = pipeline.score(data, windows)
     dens = _density(data, cands, scored, cfg, tm) if "three_rooms" in cfg.scenes else None

@@ -24,6 +24,7 @@ from mfcl_jax.frontend import plan as fe_plan
 from mfcl_jax.frontend import registration
 from mfcl_jax.frontend.candidates import Candidates, no_candidates
 from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps
+from mfcl_jax.windows.padding import pack
 
 __all__ = ["FrontEnd"]
 
@@ -33,16 +34,6 @@ def _pow2(n: int, minimum: int) -> int:
     while out < n:
         out *= 2
     return out
-
-
-def _blank_submaps() -> SubmapBatch:
-    """No submaps, with the dtypes ``windows.pack`` gives (``pad_submaps`` sizes them)."""
-    return SubmapBatch(
-        points=np.zeros((0, 0, 2), np.float32), origins=np.zeros((0, 0, 2), np.float32),
-        mask=np.zeros((0, 0), bool), X=np.zeros((0, 3), np.float32),
-        run=np.zeros(0, np.int32), window=np.zeros(0, np.int32), t=np.zeros(0, np.float64),
-        n_dropped=np.zeros(0, np.int32),
-    )  # fmt: skip
 
 
 class FrontEnd:
@@ -113,7 +104,7 @@ class FrontEnd:
         registers chunks of submaps of ``n_points`` points (a ``windows.pack`` capacity) in
         building ``building``'s bucket; a ``register`` of that shape then waits for it instead
         of compiling, one of any other shape compiles as usual."""
-        sub = pad_submaps(_blank_submaps(), n=self.chunk, p=int(n_points))
+        sub = pad_submaps(pack([], capacity=int(n_points)).submaps, n=self.chunk)  # no submaps
         feats = self.features(int(building))
         key = self._key(sub, feats)
         if key not in self._compiled:

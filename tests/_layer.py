@@ -1,6 +1,11 @@
 """The decision layer on synthetic runs (``tests.test_decision_scenes.make_run`` dicts):
 ``vmap`` over runs of ``lax.scan(layer.update)``, compiled once per lane set for one padded
-map shape, as ``decision.runs`` does for real batches."""
+map shape, as ``decision.runs`` does for real batches.
+
+Every test building is padded to one grid and one room capacity, and every batch to a
+multiple of ``RUNS`` runs (padding runs are ``valid``-false and leave no trace), so the
+tests of a lane set share one compiled program (in process, and across the suite's workers
+through the compilation cache): a compilation of the layer costs several seconds."""
 
 from functools import cache
 
@@ -16,10 +21,11 @@ from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.runs import scan_runs
 
 K, J, T, STEP, GRID = 8, 16, 192, 48, (340, 340)
+N_ROOMS, RUNS = 6, 4  # room capacity of every test building; runs per compiled call
 CAPS = Caps(windows=K, cands=J, traj=T, step=STEP, evidence=128)
 
 
-def maps_of(fp, n_rooms=4):
+def maps_of(fp, n_rooms=N_ROOMS):
     """``DecisionMaps`` of ``fp`` padded to the tests' grid, stacked as one building."""
     m = pad_maps(decision_maps(fp), GRID, n_rooms, n_motions=8, n_offsets=32)
     return jax.tree.map(lambda a: jnp.asarray(a)[None], m)
@@ -73,8 +79,12 @@ def evaluate_runs(runs, maps, params=None, ours=COUNT_VARIANTS, baselines=True):
     """Every lane's ``Decision`` at every window: host leaves ``(R, K, L, ...)``, and the
     lane names."""
     p, lanes, spec = lanes_of(params, ours, baselines)
-    ev = jax.tree.map(lambda *x: np.stack(x), *[evidence_of(r) for r in runs])
-    b = np.zeros(len(runs), np.int32)
+    evs = [evidence_of(r) for r in runs]
+    n = len(evs)
+    blank = jax.tree.map(np.zeros_like, evs[0])  # valid false: a padding run
+    evs += [blank] * (-n % RUNS)
+    ev = jax.tree.map(lambda *x: np.stack(x), *evs)
+    b = np.zeros(len(evs), np.int32)
     out = _compiled()(maps, None, b, p.as_arrays(), jax.tree.map(jnp.asarray, lanes), ev,
                       caps=CAPS, spec=spec)  # fmt: skip
-    return jax.tree.map(np.asarray, out), spec.names
+    return jax.tree.map(lambda a: np.asarray(a)[:n], out), spec.names

@@ -3,6 +3,8 @@
 All evaluations share one padded shape bucket so the jitted layer compiles once per lane set.
 """
 
+from functools import cache
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -266,6 +268,21 @@ def test_frame_has_one_row_per_run_window_lane():
     assert {"state", "kind", "x", "y", "yaw_deg", "tau_x", "B1", "B2", "margin"} <= set(df.columns)
 
 
+@cache
+def _step():
+    """The robot's jitted ``update``, one program for every test below (same shapes)."""
+    return jax.jit(layer.update)
+
+
+def _stepwise(state, ev):
+    """``lax.scan(update)`` as a robot runs it: the jitted step once per window."""
+    out = []
+    for k in range(len(ev.valid)):
+        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        out.append(d)
+    return state, jax.tree.map(lambda *x: np.stack([np.asarray(a) for a in x]), *out)
+
+
 def test_a_robot_calling_update_decides_as_the_batch():
     """The robot's path (one jitted ``update`` per window, unbatched) and the batch's (``vmap``
     over runs of ``lax.scan(update)``) are one function: the same decisions."""
@@ -274,10 +291,9 @@ def test_a_robot_calling_update_decides_as_the_batch():
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     maps = jax.tree.map(lambda a: a[0], ROW)
     state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
-    step = jax.jit(layer.update)
     ev = evidence_of(run)
     for k in range(K):
-        state, d = step(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
         d = jax.tree.map(lambda a: np.asarray(a[0]), d)
         assert int(d.state) == out.state[k] and int(d.kind) == out.kind[k], k
         assert int(d.b1) == out.b1[k] and int(d.b2) == out.b2[k]
@@ -358,7 +374,7 @@ def test_a_restart_decides_the_new_segment_as_a_run_of_its_own():
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
                        CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
-    _, d = jax.jit(lambda s, e: jax.lax.scan(layer.update, s, e))(state, two)
+    _, d = _stepwise(state, two)
     first, again = (jax.tree.map(lambda a, s=s: np.asarray(a)[s, 0], d)
                     for s in (slice(0, K), slice(K, 2 * K)))  # fmt: skip
     for f in ("state", "kind", "b1", "b2", "reason"):
@@ -383,17 +399,17 @@ def test_a_run_of_500_windows_outlives_the_capacities_and_says_so():
                              for r in range(reps)])[:n]  # fmt: skip
     many = type(many)(**{**many.__dict__, "restart": np.arange(n) == 0,
                          "start": starts.astype(np.int32),
-                         "head": np.zeros((n, 0, 3), np.float32),
-                         "head_mask": np.zeros((n, 0), bool),
+                         "head": np.zeros_like(one.head[:1].repeat(n, 0)),
+                         "head_mask": np.zeros_like(one.head_mask[:1].repeat(n, 0)),
                          "last": np.arange(n) == n - 1})  # fmt: skip
     first = jax.tree.map(lambda a: a[:1], one)  # window 1 brings its whole keyframe prefix
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
                        CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
-    state, d0 = jax.jit(layer.update)(state, jax.tree.map(lambda a: a[0], first))
+    state, d0 = _step()(state, jax.tree.map(lambda a: jnp.asarray(a[0]), first))
     rest = jax.tree.map(lambda a: a[1:], many)
     rest = type(rest)(**{**rest.__dict__, "restart": np.zeros(n - 1, bool)})
-    state, d = jax.jit(lambda s, e: jax.lax.scan(layer.update, s, e))(state, rest)
+    state, d = _stepwise(state, rest)
     d = jax.tree.map(lambda a: np.asarray(a)[:, 0], d)
     assert d.dropped[-1] == n - K  # every window beyond the capacity is counted
     assert (np.diff(d.dropped) >= 0).all() and d.dropped[K - 2] == 0

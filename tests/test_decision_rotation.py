@@ -31,7 +31,6 @@ from tests.test_decision_scenes import WT, make_run, row_of_rooms, three_rooms, 
 
 G = np.array([22.0, 8.0, np.pi])  # the building's self-motion: half turn about (11, 4)
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
-N_ROOMS = 6
 
 
 def _rot(pts):
@@ -80,7 +79,7 @@ def duplex():
 
 
 FP = duplex()
-MAPS = maps_of(FP, N_ROOMS)
+MAPS = maps_of(FP)
 INSIDE_A = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2, 2], [2, 6]]  # LA -> BA -> LA
 INTO_S = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [2.5, 6], [2.5, 9.5]]  # ... -> S
 BOTH_UNITS = [[2, 2], [8.5, 2], [7.5, 6], [7.5, 2], [11, 1.5], [14.5, 1.5], [14.5, 6]]

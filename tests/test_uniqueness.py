@@ -18,6 +18,7 @@ from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, walk
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 K, J = 8, 16
 COMMIT = 2
+FIELDS = (256, 512)  # the rival search's field shape of both test buildings
 
 
 def truth_only(k, y):
@@ -40,8 +41,9 @@ def _decide(fp, run):
     p, lanes, spec = lanes_of(None, ours=("ours", "ours_unique_a2"), baselines=False)
     maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4, n_motions=8,
                                               n_offsets=32))  # fmt: skip
-    fields = jax.tree.map(jnp.asarray, rival_fields(fp))
-    n_img = image_size([row_of_rooms(widths=(PITCH,) * 4)])  # one static size for both scenes
+    # one static shape for both scenes (the longer row's), so both tests share one program
+    fields = jax.tree.map(jnp.asarray, rival_fields(fp, shape=FIELDS))
+    n_img = image_size([row_of_rooms(widths=(PITCH,) * 4)])
     state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
                        fields, n_img)  # fmt: skip
     ev = evidence_of(run)

@@ -30,10 +30,8 @@ import datetime
 import json
 import os
 import pathlib
-import shutil
 import subprocess
 import sys
-import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
@@ -104,6 +102,8 @@ def one(name: str) -> dict:
 def main(argv=None) -> int:
     import pandas as pd
 
+    from mfcl_jax.study.readme import update_block
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--one", help=argparse.SUPPRESS)
@@ -147,11 +147,7 @@ def main(argv=None) -> int:
     md = head + "\n\n" + med.to_markdown(index=False) + "\n"
     (RESULTS / "bench_compile.md").write_text(md)
     print("\n" + md)
-    with tempfile.TemporaryDirectory() as d:  # only this block of the page is touched
-        shutil.copy(RESULTS / "bench_compile.md", pathlib.Path(d) / "bench_compile.md")
-        from mfcl_jax.study.readme import update_readme
-
-        update_readme(ROOT / "docs" / "speed.md", d)
+    update_block(ROOT / "docs" / "speed.md", "bench_compile", RESULTS / "bench_compile.md")
     return 0
 
 

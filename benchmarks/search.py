@@ -30,7 +30,6 @@ import datetime
 import json
 import os
 import pathlib
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -175,11 +174,9 @@ def main(argv=None) -> int:
     (RESULTS / "bench_search.md").write_text(md)
     print("\n" + md)
     page = ROOT / "docs" / "speed.md"
-    with tempfile.TemporaryDirectory() as d:  # only this block of the page is touched
-        shutil.copy(RESULTS / "bench_search.md", pathlib.Path(d) / "bench_search.md")
-        from mfcl_jax.study.readme import update_readme
+    from mfcl_jax.study.readme import update_block
 
-        update_readme(page, d)
+    update_block(page, "bench_search", RESULTS / "bench_search.md")
     fig, ax = plt.subplots(figsize=(7, 3.2))
     labels = [f"{r.building}\n{r.kernel}" for r in table.itertuples()]
     x = range(len(table))

@@ -394,14 +394,11 @@ def write_outputs(rows, summary, header: str, csv_path: pathlib.Path) -> pathlib
 
 
 def paste_into_docs(md_path: pathlib.Path, page: pathlib.Path) -> bool:
-    """Pastes ``md_path`` into the ``<!-- BEGIN:bench_versions -->`` block of ``page`` with
-    the project's helper (``mfcl_jax.study.readme.update_readme``), given a folder that holds
-    only this table, so that no other block of the page is touched."""
-    from mfcl_jax.study.readme import update_readme
+    """Pastes ``md_path`` into the ``<!-- BEGIN:bench_versions -->`` block of ``page`` (no
+    other block of the page is touched)."""
+    from mfcl_jax.study.readme import update_block
 
-    with tempfile.TemporaryDirectory() as d:
-        shutil.copy(md_path, pathlib.Path(d) / "bench_versions.md")
-        return "bench_versions" in update_readme(page, d)
+    return update_block(page, "bench_versions", md_path)
 
 
 def _interrupt(signum, frame):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mfcl_jax.io.atomic import atomic_write
 
-__all__ = ["update_readme", "update_docs"]
+__all__ = ["update_readme", "update_docs", "update_block"]
 
 _BLOCK = re.compile(r"(<!-- BEGIN:([\w/.-]+) -->\n)(.*?)(<!-- END:\2 -->)", re.S)
 
@@ -19,15 +19,27 @@ _BLOCK = re.compile(r"(<!-- BEGIN:([\w/.-]+) -->\n)(.*?)(<!-- END:\2 -->)", re.S
 def update_readme(readme="README.md", results="results") -> list[str]:
     """Refreshes every marked block of one Markdown file whose table exists; returns the
     names refreshed."""
-    readme, results = Path(readme), Path(results)
+    results = Path(results)
+    return _fill(readme, lambda name: results / f"{name}.md")
+
+
+def update_block(page, name: str, table) -> bool:
+    """Refreshes only the block ``name`` of ``page`` with the Markdown file ``table`` (a
+    benchmark pasting its own table); whether the block was there."""
+    return name in _fill(page, lambda n: Path(table) if n == name else None)
+
+
+def _fill(readme, source) -> list[str]:
+    """Replaces each block whose ``source(name)`` file exists; the names replaced."""
+    readme = Path(readme)
     if not readme.exists():
         return []
     text = readme.read_text()
     done = []
 
     def fill(m):
-        src = results / f"{m.group(2)}.md"
-        if not src.exists():
+        src = source(m.group(2))
+        if src is None or not src.exists():
             return m.group(0)
         done.append(m.group(2))
         return m.group(1) + src.read_text().rstrip("\n") + "\n" + m.group(4)

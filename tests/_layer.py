@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import Caps, decision_maps, make_lanes
+from mfcl_jax.decision import Caps, decision_maps, layer, make_lanes
 from mfcl_jax.decision.lanes import COUNT_VARIANTS
 from mfcl_jax.decision.layer import WindowEvidence
 from mfcl_jax.decision.maps import pad_maps
@@ -88,3 +88,25 @@ def evaluate_runs(runs, maps, params=None, ours=COUNT_VARIANTS, baselines=True):
     out = _compiled()(maps, None, b, p.as_arrays(), jax.tree.map(jnp.asarray, lanes), ev,
                       caps=CAPS, spec=spec)  # fmt: skip
     return jax.tree.map(lambda a: np.asarray(a)[:n], out), spec.names
+
+
+@cache
+def step():
+    """The robot's jitted ``update``: one ``jax.jit`` for every test of a worker, one program
+    per state shape."""
+    return jax.jit(layer.update)
+
+
+def window(ev, k):
+    """Window ``k`` of ``evidence_of``'s arrays, on the device."""
+    return jax.tree.map(lambda a: jnp.asarray(a[k]), ev)
+
+
+def stepwise(state, ev):
+    """``lax.scan(update)`` as a robot runs it, the jitted step once per window:
+    ``(state, Decision)`` with host leaves ``(K, L, ...)``."""
+    out = []
+    for k in range(len(ev.valid)):
+        state, d = step()(state, window(ev, k))
+        out.append(jax.tree.map(np.asarray, d))
+    return state, jax.tree.map(lambda *x: np.stack(x), *out)

@@ -3,8 +3,6 @@
 All evaluations share one padded shape bucket so the jitted layer compiles once per lane set.
 """
 
-from functools import cache
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -14,7 +12,19 @@ from hypothesis import strategies as st
 from mfcl_jax import se2
 from mfcl_jax.decision import REASONS, DecisionParams, layer, sanitize, to_frame
 from mfcl_jax.decision.runs import TRACES
-from tests._layer import CAPS, J, K, T, evaluate_runs, evidence_of, lanes_of, maps_of
+from tests._layer import (
+    CAPS,
+    J,
+    K,
+    T,
+    evaluate_runs,
+    evidence_of,
+    lanes_of,
+    maps_of,
+    step,
+    stepwise,
+    window,
+)
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, shift, three_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
@@ -268,21 +278,6 @@ def test_frame_has_one_row_per_run_window_lane():
     assert {"state", "kind", "x", "y", "yaw_deg", "tau_x", "B1", "B2", "margin"} <= set(df.columns)
 
 
-@cache
-def _step():
-    """The robot's jitted ``update``, one program for every test below (same shapes)."""
-    return jax.jit(layer.update)
-
-
-def _stepwise(state, ev):
-    """``lax.scan(update)`` as a robot runs it: the jitted step once per window."""
-    out = []
-    for k in range(len(ev.valid)):
-        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
-        out.append(d)
-    return state, jax.tree.map(lambda *x: np.stack([np.asarray(a) for a in x]), *out)
-
-
 def test_a_robot_calling_update_decides_as_the_batch():
     """The robot's path (one jitted ``update`` per window, unbatched) and the batch's (``vmap``
     over runs of ``lax.scan(update)``) are one function: the same decisions."""
@@ -293,7 +288,7 @@ def test_a_robot_calling_update_decides_as_the_batch():
     state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
     ev = evidence_of(run)
     for k in range(K):
-        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        state, d = step()(state, window(ev, k))
         d = jax.tree.map(lambda a: np.asarray(a[0]), d)
         assert int(d.state) == out.state[k] and int(d.kind) == out.kind[k], k
         assert int(d.b1) == out.b1[k] and int(d.b2) == out.b2[k]
@@ -374,7 +369,7 @@ def test_a_restart_decides_the_new_segment_as_a_run_of_its_own():
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
                        CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
-    _, d = _stepwise(state, two)
+    _, d = stepwise(state, two)
     first, again = (jax.tree.map(lambda a, s=s: np.asarray(a)[s, 0], d)
                     for s in (slice(0, K), slice(K, 2 * K)))  # fmt: skip
     for f in ("state", "kind", "b1", "b2", "reason"):
@@ -406,10 +401,10 @@ def test_a_run_of_500_windows_outlives_the_capacities_and_says_so():
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     state = layer.init(jax.tree.map(lambda a: a[0], ROW), p.as_arrays(),
                        CAPS, jax.tree.map(jnp.asarray, lanes), spec)  # fmt: skip
-    state, d0 = _step()(state, jax.tree.map(lambda a: jnp.asarray(a[0]), first))
+    state, d0 = step()(state, window(first, 0))
     rest = jax.tree.map(lambda a: a[1:], many)
     rest = type(rest)(**{**rest.__dict__, "restart": np.zeros(n - 1, bool)})
-    state, d = _stepwise(state, rest)
+    state, d = stepwise(state, rest)
     d = jax.tree.map(lambda a: np.asarray(a)[:, 0], d)
     assert d.dropped[-1] == n - K  # every window beyond the capacity is counted
     assert (np.diff(d.dropped) >= 0).all() and d.dropped[K - 2] == 0

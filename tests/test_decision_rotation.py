@@ -25,7 +25,7 @@ from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.symmetry import rotational_motions
 from mfcl_jax.floorplan import Door, Floorplan, Room
 from mfcl_jax.robot.localizer import record_of
-from tests._layer import CAPS, J, K, evaluate_runs, evidence_of, lanes_of, maps_of
+from tests._layer import CAPS, J, K, evaluate_runs, evidence_of, lanes_of, maps_of, step, window
 from tests.test_decision_layer import NAMES, ours
 from tests.test_decision_scenes import WT, make_run, row_of_rooms, three_rooms, walk
 
@@ -213,11 +213,10 @@ def test_robot_equals_batch_with_rotation(path):
     p, lanes, spec = lanes_of(ours=("ours",), baselines=False)
     maps = jax.tree.map(lambda a: a[0], MAPS)
     state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec)
-    step = jax.jit(layer.update)
     ev = evidence_of(r)
     kinds = []
     for k in range(K):
-        state, d = step(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        state, d = step()(state, window(ev, k))
         d = jax.tree.map(lambda a: np.asarray(a[0]), d)
         assert int(d.state) == out.state[k] and int(d.kind) == out.kind[k]
         np.testing.assert_allclose(d.anchor, out.anchor[k], atol=1e-4)

@@ -1,8 +1,6 @@
 """Rivals of a commit: the global search of the whole path, and what the certification does
 with what it finds (decision.rivals, certify, layer)."""
 
-from functools import cache
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,7 +9,7 @@ from mfcl_jax import se2
 from mfcl_jax.decision import REASONS, DecisionParams, decision_maps, layer
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.rivals import RivalParams, image_size, path_cloud, rival_fields, search
-from tests._layer import CAPS, evidence_of, lanes_of
+from tests._layer import CAPS, evidence_of, lanes_of, step, window
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
@@ -57,11 +55,6 @@ def test_search_places_an_asymmetric_path_where_it_was_walked():
     assert not np.asarray(none).any()
 
 
-@cache
-def _step():
-    return jax.jit(layer.update)
-
-
 def _decide(run, maps, rival=None, found_at=None, params=None):
     """Our lane window by window (one ``update`` each); ``rival`` is put into the run's rival
     slots before window ``found_at`` (as a search there would)."""
@@ -74,7 +67,7 @@ def _decide(run, maps, rival=None, found_at=None, params=None):
             state = layer.LayerState(**{**state.__dict__,
                                         "rivals": state.rivals.at[0].set(jnp.asarray(rival)),
                                         "rivals_ok": state.rivals_ok.at[0].set(True)})  # fmt: skip
-        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
+        state, d = step()(state, window(ev, k))
         out.append(jax.tree.map(lambda a: np.asarray(a[0]), d))
     return jax.tree.map(lambda *x: np.stack(x), *out)
 

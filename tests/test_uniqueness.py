@@ -2,8 +2,6 @@
 placement that explains the path as soon as the test holds, earlier than the count of windows
 where the building allows it, and never where a congruent copy explains the path as well."""
 
-from functools import cache
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,7 +10,7 @@ from mfcl_jax import se2
 from mfcl_jax.decision import decision_maps, layer
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.rivals import image_size, rival_fields
-from tests._layer import CAPS, GRID, evidence_of, lanes_of
+from tests._layer import CAPS, GRID, evidence_of, lanes_of, stepwise
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
@@ -30,11 +28,6 @@ def shifted_too(k, y):
     return [(y, 1.0), (np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), y)), 1.0)]
 
 
-@cache
-def _step():
-    return jax.jit(layer.update)
-
-
 def _decide(fp, run):
     """Lanes ``ours`` and ``ours_unique_a2`` (alpha 1e-2) window by window: host leaves
     ``(K, 2, ...)``."""
@@ -46,12 +39,7 @@ def _decide(fp, run):
     n_img = image_size([row_of_rooms(widths=(PITCH,) * 4)])
     state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
                        fields, n_img)  # fmt: skip
-    ev = evidence_of(run)
-    out = []
-    for k in range(K):
-        state, d = _step()(state, jax.tree.map(lambda a, k=k: jnp.asarray(a[k]), ev))
-        out.append(jax.tree.map(np.asarray, d))
-    return jax.tree.map(lambda *x: np.stack(x), *out)
+    return stepwise(state, evidence_of(run))[1]
 
 
 def test_a_unique_path_commits_no_later_than_the_count_and_at_the_truth():

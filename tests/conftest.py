@@ -1,6 +1,7 @@
 """Test configuration: strict dtype promotion and CPU-friendly hypothesis settings."""
 
 import os
+from pathlib import Path
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
@@ -17,6 +18,59 @@ _common = dict(max_examples=40, deadline=None, suppress_health_check=[HealthChec
 settings.register_profile("ci", derandomize=True, **_common)
 settings.register_profile("explore", **_common)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+# How the two xdist workers share the suite (``pytest_xdist_make_scheduler`` below). The suite's
+# time is mostly compiling the layer, the front-end and the robot's step; a worker compiles a
+# program once and keeps it in memory, so files that compile the same programs run on one
+# worker, one after another (JAX's disk cache, shared by both, only skips XLA's part, and only
+# once the other worker has finished writing). Every other file is a group of its own. Groups
+# are handed out heaviest first: the weights are a serial run's seconds per group
+# (``pytest -n 0 --durations=0``, rounded); a new file counts 1 until it is added here.
+GROUPS = {
+    "decision": (
+        "test_decision_layer", "test_decision_rotation", "test_decision_machine",
+        "test_decision_gate", "test_decision_drift", "test_decision_scenes", "test_uniqueness",
+        "test_rivals", "test_path_llr",
+    ),
+    "robot": (
+        "test_cli", "test_cli_3d", "test_viz", "test_cli_segments", "test_cli_live",
+        "test_cli_status", "test_cli_signals", "test_cli_inputs", "test_cli_many", "test_traced",
+        "test_plan_frame", "test_safe_output", "test_input_rates",
+    ),
+    "frontend": ("test_frontend", "test_frontend_driver"),
+    "benchmark": ("test_benchmark", "test_launcher"),
+}  # fmt: skip
+WEIGHTS = {
+    "decision": 125, "robot": 85, "benchmark": 58, "frontend": 48, "test_study": 45,
+    "test_mcl": 35, "test_real_floorplans": 13, "test_families": 10, "test_sim": 8,
+}  # fmt: skip
+_GROUP_OF = {f: g for g, files in GROUPS.items() for f in files}
+
+
+def _group(nodeid: str) -> str:
+    stem = Path(nodeid.split("::")[0]).stem
+    return _GROUP_OF.get(stem, stem)
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """xdist's file-by-file scheduling with GROUPS as the work units (xdist's own
+    ``--dist loadgroup`` reads marks into node ids, which pytest 9 no longer lets it edit)."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class GroupScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _group(nodeid)
+
+    return GroupScheduling(config, log)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The groups heaviest first, each group's tests in their collection order (the work
+    queue keeps this order: ``--no-loadscope-reorder``)."""
+    first = {}
+    for i, item in enumerate(items):
+        first.setdefault(_group(item.nodeid), i)
+    items.sort(key=lambda it: (-WEIGHTS.get(_group(it.nodeid), 1), first[_group(it.nodeid)]))
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -268,9 +268,10 @@ def test_thinning_scans_to_n_beams_keeps_the_filter_s_own_pick(t1):
 
 
 def test_traced_parameters_and_thresholds_do_not_recompile(t1, s1):
-    kf, we = _short(t1, 24, 6)  # the batch test's shapes: its compilation is reused
+    # the batch test's shapes, seeds included: its compilation is reused
+    kf, we = _short(t1, 24, 6)
     batch = prepare_mcl_inputs([t1, s1], [we, we], [kf, kf], max_points=60)
-    trace = run_mcl(batch, SMALL, seeds=(0,))
+    trace = run_mcl(batch, SMALL, seeds=(0, 1))
     n0 = trace_count()
     other = dataclasses.replace(
         SMALL,
@@ -282,12 +283,12 @@ def test_traced_parameters_and_thresholds_do_not_recompile(t1, s1):
         recovery_alpha_slow=0.02,
         recovery_alpha_fast=0.2,
     )
-    again = run_mcl(batch, other, seeds=(1,))
+    again = run_mcl(batch, other, seeds=(1, 2))
     for xy in (0.1, 0.5, 2.0):
         commits(again, xy, 5.0, 2)
     assert trace_count() == n0
     assert not np.allclose(again.pose, trace.pose)
-    run_mcl(batch, dataclasses.replace(SMALL, n_particles=128), seeds=(0,))
+    run_mcl(batch, dataclasses.replace(SMALL, n_particles=128), seeds=(0, 1))
     assert trace_count() == n0 + 1
 
 

@@ -52,6 +52,7 @@ def _group(nodeid: str) -> str:
     return _GROUP_OF.get(stem, stem)
 
 
+@pytest.hookimpl(optionalhook=True)  # a hook of xdist's: absent with ``-p no:xdist``
 def pytest_xdist_make_scheduler(config, log):
     """xdist's file-by-file scheduling with GROUPS as the work units (xdist's own
     ``--dist loadgroup`` reads marks into node ids, which pytest 9 no longer lets it edit)."""

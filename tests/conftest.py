@@ -1,4 +1,5 @@
-"""Test configuration: strict dtype promotion and CPU-friendly hypothesis settings."""
+"""Test configuration: strict dtype promotion, CPU-friendly hypothesis settings, how the two
+xdist workers share the files (``GROUPS``) and the session's JAX compilation cache."""
 
 import os
 from pathlib import Path

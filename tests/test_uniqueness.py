@@ -73,3 +73,18 @@ def test_a_walk_inside_one_of_four_congruent_rooms_never_commits():
     assert not (d.state[:, 1] == COMMIT).any(), (d.state[:, 1].tolist(), d.llr[:, 1].tolist())
     ran = np.isfinite(d.llr[:, 1])
     assert (d.llr[ran, 1] < np.log(1e2)).all()
+
+
+def test_a_uniqueness_lane_alone_gets_the_plan_fields_its_search_needs():
+    """Lanes of the uniqueness test without the rival-searching ``ours`` lane (the benchmark's
+    ``policies=ours_unique_a2``): the buildings still carry the search's plan fields (it
+    raised in ``layer.init`` before)."""
+    from mfcl_jax.decision import make_lanes
+    from mfcl_jax.decision.runs import stack_buildings
+
+    fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))
+    for ours, primary in ((("ours_unique_a2",), None), (("paper",), "paper")):
+        spec = make_lanes(None, ours, False, primary)[2]
+        b = stack_buildings([fp], spec)
+        assert spec.searches == (ours[0] == "ours_unique_a2")
+        assert (b.fields is not None) == spec.searches and (b.n_img > 0) == spec.searches

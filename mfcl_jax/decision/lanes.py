@@ -106,6 +106,12 @@ class LaneSpec:
     unique: bool = False  # some lane runs the uniqueness test
 
     @property
+    def searches(self) -> bool:
+        """Some lane searches the plan for the path (rival search or uniqueness test): the
+        buildings need their search fields."""
+        return self.primary >= 0 or self.unique
+
+    @property
     def n_ours(self) -> int:
         return len(self.names) - (len(BASELINES) * self.n_sets if self.baselines else 0)
 

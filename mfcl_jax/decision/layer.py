@@ -73,7 +73,7 @@ def init(maps: DecisionMaps, params: DecisionParams, caps: Caps, lanes: Lanes,
          spec: LaneSpec, fields: PlanFields | None = None, n_img: int = 0,
          rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS) -> LayerState:  # fmt: skip
     """The state before the first window (``lanes.lanes`` gives ``lanes``, ``spec``)."""
-    searches = spec.primary >= 0 or spec.unique
+    searches = spec.searches
     if searches and (fields is None or n_img <= 0):
         raise ValueError("init: a lane searches the plan for the path; pass fields= and n_img=")
     world = World(maps, params, lanes, fields if searches else None, caps, spec, n_img,

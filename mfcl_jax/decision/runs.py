@@ -39,7 +39,7 @@ class Buildings:
 def stack_buildings(floorplans, spec: LaneSpec, rival_params=rivals.DEFAULT_RIVALS) -> Buildings:
     """``Buildings`` of ``floorplans`` for the lanes of ``spec`` (``rivals.RivalParams``)."""
     maps = stack_maps([decision_maps(fp, min_iou=spec.min_iou) for fp in floorplans])
-    if spec.primary < 0:
+    if not spec.searches:
         return Buildings(maps, None, 0)
     return Buildings(maps, rivals.stack_fields(floorplans, rival_params),
                      rivals.image_size(floorplans, rival_params))  # fmt: skip
@@ -132,7 +132,7 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     """
     rb = np.asarray(run_building)
     R, K = np.asarray(inputs.evidence.valid).shape
-    if buildings is None and size_classes and spec.primary >= 0:
+    if buildings is None and size_classes and spec.searches:
         used = sorted(set(rb.tolist()))
         classes: dict = {}
         for b in used:

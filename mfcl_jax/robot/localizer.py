@@ -178,7 +178,7 @@ class Localizer:
         p, lanes, spec = make_lanes(self.params.decision, (variant,), primary=variant)
         maps = jax.tree.map(jnp.asarray, decision_maps(floorplan, min_iou=spec.min_iou))
         fields, n_img = None, 0
-        if spec.primary >= 0:
+        if spec.searches:
             fields = jax.tree.map(jnp.asarray, rivals.rival_fields(floorplan))
             n_img = rivals.image_size([floorplan])
         self._init = (maps, p.as_arrays(), self.params.caps, jax.tree.map(jnp.asarray, lanes),

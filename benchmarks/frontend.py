@@ -34,305 +34,38 @@ Timing (all in this one process, compile time apart, medians of interleaved repe
 from __future__ import annotations
 
 import argparse
-import math
+import sys
 import time
 from functools import partial
 from pathlib import Path
 
 import jax
-import matplotlib
 import numpy as np
 import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from mfcl_jax import se2  # noqa: E402
-from mfcl_jax import windows as W  # noqa: E402
-from mfcl_jax.frontend import (  # noqa: E402
-    FrontendParams,
-    build_features,
-    common_features,
-    features,
-    hough,
-    sanitize_submaps,
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._frontend_accuracy import diagnose, metrics  # noqa: E402
+from benchmarks._frontend_data import (  # noqa: E402
+    CHUNK,
+    D_S,
+    OPTS,
+    P_STUDY,
+    SCENES,
+    rows_of,
+    scene_data,
 )
-from mfcl_jax.frontend.driver import FrontEnd  # noqa: E402
-from mfcl_jax.frontend.params import COMPILER_OPTIONS  # noqa: E402
-from mfcl_jax.frontend.registration import STAGES, register_debug, register_stages  # noqa: E402
+from benchmarks._frontend_figure import figure  # noqa: E402
+from benchmarks._frontend_timing import (  # noqa: E402
+    area_rows,
+    driver_rows,
+    load,
+    roofline,
+    stage_profile,
+)
+from mfcl_jax.frontend import FrontendParams, common_features  # noqa: E402
+from mfcl_jax.frontend.registration import register_debug  # noqa: E402
 from mfcl_jax.sim.scenes import get_scene  # noqa: E402
-from mfcl_jax.sources.simulated import simulate  # noqa: E402
-from mfcl_jax.windows.arrays import SubmapBatch, pad_submaps  # noqa: E402
-
-SCENES = ("three_rooms", "symmetric_bays")
-D_S = (5.0, 6.0, 7.0)
-HIT_XY, HIT_DEG = 0.5, 2.0
-TIE = 1e-3  # score difference under which two candidates are tied
-P_STUDY = 2048  # the study's point bucket (windows.pack of 10 seeds x 3 d_s)
-CHUNK = 32  # the study's driver chunk (study.pipeline.register_all)
-OPTS = dict(compiler_options=COMPILER_OPTIONS)  # as every front-end call is compiled
-
-
-def load() -> str:
-    with open("/proc/loadavg") as f:
-        return " ".join(f.read().split()[:3])
-
-
-def scene_data(seeds) -> dict:
-    """``{(scene, d_s): (SubmapBatch, Y (n, 3))}`` over every trajectory of each scene."""
-    out = {}
-    for name in SCENES:
-        recs = simulate(name, seeds=seeds)
-        for d_s in D_S:
-            items, Y = [], []
-            for r in recs:
-                w = W.cut(r.seq, W.WindowParams(d_s=d_s))
-                items.append((r.seq, w, 0))
-                Y.append(np.asarray(r.truth.poses)[w.last_scan()])
-            sub = sanitize_submaps(W.pack(items).submaps)
-            out[name, d_s] = (sub, np.concatenate(Y).astype(np.float32))
-    return out
-
-
-def rows_of(b: SubmapBatch, idx) -> SubmapBatch:
-    return jax.tree.map(lambda a: np.asarray(a)[idx], b)
-
-
-def metrics(c, dbg, Y) -> dict:
-    """Accuracy metrics of one (scene, d_s) from ``register_debug`` outputs (NumPy)."""
-    n = len(Y)
-    dxy, dth = (np.asarray(a) for a in se2.distance_pair(c.pose, Y[:, None]))
-    hit = (dxy < HIT_XY) & (dth < np.radians(HIT_DEG)) & c.mask
-    found = hit.any(1)
-    rank = np.where(found, hit.argmax(1), -1)
-    wrong = ~hit[:, 0] & c.mask[:, 0]
-    tied = c.mask & (c.score >= c.score[:, :1] - TIE)
-    d_top = np.asarray(se2.distance_pair(c.pose, c.pose[:, :1])[0])
-    tie = (tied & (d_top >= HIT_XY)).any(1)
-    d_alias = dxy[:, 0][wrong]
-    walls = dbg["walls"].astype(bool)
-    # Refinement: same candidate before and after.
-    d0, t0 = (np.asarray(a) for a in se2.distance_pair(dbg["pose0"], Y[:, None]))
-    d1, t1 = (np.asarray(a) for a in se2.distance_pair(dbg["refined"], Y[:, None]))
-    k = np.argmin(np.where(dbg["ok0"], d0 + np.degrees(t0) * 0.1, np.inf), 1)
-    r = np.arange(n)
-    near = d0[r, k] < HIT_XY
-    e0, e1 = d0[r, k][near], d1[r, k][near]
-    a0, a1 = np.degrees(t0[r, k][near]), np.degrees(t1[r, k][near])
-    moved = np.any(dbg["refined"] != dbg["pose0"], -1) & dbg["ok0"]
-    q = lambda a, pct: float(np.percentile(a, pct)) if len(a) else np.nan  # noqa: E731
-    bay, room = (d_alias >= 5.5) & (d_alias < 9), (d_alias >= 12.5) & (d_alias < 16.5)
-    binned = (d_alias < 3) | bay | room
-    return (
-        dict(
-            n_submaps=n,
-            recall_at_J=found.mean(),
-            top1=hit[:, 0].mean(),
-            top1_tied=(hit & tied).any(1).mean(),
-            tie_share=tie.mean(),
-            share_2walls=walls.mean(),
-            top1_2walls=hit[walls, 0].mean() if walls.any() else np.nan,
-            share_corner=(dbg["n_corners"] >= 1).mean(),
-            alias_share=wrong.mean(),
-            alias_lt3m=(d_alias < 3).sum() / n,
-            alias_5to9m=bay.sum() / n,
-            alias_12to17m=room.sum() / n,
-            alias_other=wrong.mean() - binned.sum() / n,
-            alias_median_m=float(np.median(d_alias)) if len(d_alias) else np.nan,
-            median_rank=float(np.median(rank[found])) if found.any() else np.nan,
-            max_rank=int(rank.max()),
-            empty=int((~c.mask.any(1)).sum()),
-            refine_accepted=moved.sum() / max(dbg["ok0"].sum(), 1),
-            err_before_m=q(e0, 50),
-            err_before_p90_m=q(e0, 90),
-            err_after_m=q(e1, 50),
-            err_after_p90_m=q(e1, 90),
-            err_before_deg=q(a0, 50),
-            err_before_p90_deg=q(a0, 90),
-            err_after_deg=q(a1, 50),
-            err_after_p90_deg=q(a1, 90),
-        ),
-        found,
-        dxy[:, 0],
-        np.degrees(dth[:, 0]),
-    )
-
-
-def diagnose(b, Y, feats, p, rows):
-    """Prints, for missed submaps: lines, corners, votes, the vote nearest the truth."""
-    for i in rows:
-        pts, org, ok, _ = features.subsample(b.points[i], b.origins[i], b.mask[i], p.hough_points)
-        lines = features.detect_lines(pts, org, ok, p)
-        corners = features.detect_corners(lines, ok, p)
-        votes, w = hough.corner_votes(corners, feats.plan_corners, p)
-        dxy, dth = (np.asarray(a) for a in se2.distance_pair(votes, np.float32(Y[i])))
-        v = np.asarray(w) > 0
-        j = np.argmin(np.where(v, dxy + 0.2 * np.degrees(dth), np.inf))
-        print(
-            f"    miss row {i}: {int(b.mask[i].sum())} pts, {int(lines['valid'].sum())} lines, "
-            f"{int(corners['valid'].sum())} corners, {int(v.sum())} votes, nearest vote "
-            f"{dxy[j]:.2f} m / {np.degrees(dth[j]):.1f} deg",
-            flush=True,
-        )
-
-
-# Flops per field lookup, counted in verify.sample_xy / verify.score / refine._grad_normal
-# (the exp as its ~15-flop polynomial): transform 8, cell index 10, bilinear 9, then for an
-# occupied point the kernel and the sum (21), for a free-space sample the sum (1), for a
-# refinement point the gradient, the heading column, the kernel and nine products and sums (56).
-FLOPS = dict(occupied=48, free=28, refine=83)
-CORE_GHZ, LOADS_PER_CYCLE, FLOPS_PER_CYCLE = 2.6, 2, 64  # this machine: AVX-512, 2 FMA ports
-
-
-def work(p: FrontendParams) -> dict:
-    """Static work per submap (fixed by the capacities, not by the data): bilinear field
-    lookups and their flops per stage, and the pairwise tests of the pose accumulator."""
-    look = dict(
-        prescreen=(p.n_prescreen, p.prescreen_points),
-        score=(p.n_hough, p.verify_points),
-        rescore=(p.J, p.verify_points),
-    )
-    out = {k: k_ * n * (1 + p.ray_samples) for k, (k_, n) in look.items()}
-    flops = {
-        k: k_ * n * (FLOPS["occupied"] + p.ray_samples * FLOPS["free"])
-        for k, (k_, n) in look.items()
-    }
-    out["refine"] = p.J * p.refine_steps * p.refine_points
-    flops["refine"] = out["refine"] * FLOPS["refine"]
-    out["flops"] = flops
-    out["peaks"] = 2 * p.max_votes**2 + p.n_prescreen * p.max_votes
-    return out
-
-
-def stage_profile(p, sub, feats, reps, rows):
-    """Stage table: every pipeline prefix on the same chunks, interleaved repetitions."""
-    chunks = [
-        pad_submaps(rows_of(sub, slice(a, a + CHUNK)), n=CHUNK, p=P_STUDY)
-        for a in range(0, sub.n, CHUNK)
-    ]
-    fns = {}
-    for name in STAGES:
-        fn = jax.jit(partial(register_stages, params=p, stop=name), **OPTS)
-        t0 = time.perf_counter()
-        fns[name] = fn.lower(chunks[0], feats).compile()
-        print(f"  compiled prefix ..{name} in {time.perf_counter() - t0:.1f} s", flush=True)
-    T = np.zeros((reps, len(STAGES)))
-    for r in range(reps):
-        for k, name in enumerate(STAGES):
-            t0 = time.perf_counter()
-            for c in chunks:
-                jax.block_until_ready(fns[name](c, feats))
-            T[r, k] = 1e3 * (time.perf_counter() - t0) / sub.n
-    inc = np.median(np.diff(T, axis=1, prepend=0.0), axis=0)
-    cum = np.median(T, axis=0)
-    for k, name in enumerate(STAGES):
-        rows.append(
-            dict(
-                kind="stage",
-                stage=name,
-                P=P_STUDY,
-                chunk=CHUNK,
-                ms_per_submap=inc[k],
-                ms_cumulative=cum[k],
-                n_submaps=sub.n,
-                repeats=reps,
-                load=load(),
-            )
-        )
-    return dict(zip(STAGES, inc, strict=True)), cum[-1]
-
-
-def driver_rows(p, fps, subs, chunk_sizes, reps, rows):
-    """``FrontEnd.register`` on every benchmark submap, per chunk size (compile apart)."""
-    sub = jax.tree.map(lambda *a: np.concatenate(a), *[pad_submaps(s, p=P_STUDY) for s, _ in subs])
-    building = np.concatenate([np.full(s.n, b) for s, b in subs])
-    for c in chunk_sizes:
-        fe = FrontEnd(fps, p, chunk=c)
-        fe.register(sub, building)  # compiles (one bucket for both scenes)
-        ts = []
-        for _ in range(reps):
-            r0 = fe.run_s
-            fe.register(sub, building)
-            ts.append(1e3 * (fe.run_s - r0) / sub.n)
-        rows.append(
-            dict(
-                kind="driver",
-                stage="all",
-                P=P_STUDY,
-                chunk=c,
-                ms_per_submap=float(np.median(ts)),
-                compile_s=fe.compile_s,
-                n_submaps=sub.n,
-                repeats=reps,
-                load=load(),
-            )
-        )
-        print({k: v for k, v in rows[-1].items()}, flush=True)
-
-
-def area_rows(p, fp, sub, reps, rows):
-    """The full pipeline with the plan padded to a larger raster (cost vs floor area)."""
-    r = fp.rasterize(0.10)
-    chunks = [
-        pad_submaps(rows_of(sub, slice(a, a + CHUNK)), n=CHUNK, p=P_STUDY)
-        for a in range(0, sub.n, CHUNK)
-    ]
-    fn = jax.jit(partial(register_stages, params=p, stop=STAGES[-1]), **OPTS)
-    for ax in (1, 4):
-        s = math.sqrt(ax)
-        shape = (int(np.ceil(r.shape[0] * s)), int(np.ceil(r.shape[1] * s)))
-        f = build_features(fp, p, rasters=r, shape=shape, corner_capacity=64 * ax)
-        jax.block_until_ready(fn(chunks[0], f))
-        ts = []
-        for _ in range(reps):
-            t0 = time.perf_counter()
-            for c in chunks:
-                jax.block_until_ready(fn(c, f))
-            ts.append(1e3 * (time.perf_counter() - t0) / sub.n)
-        rows.append(
-            dict(
-                kind="area",
-                stage="all",
-                P=P_STUDY,
-                chunk=CHUNK,
-                area_x=ax,
-                ms_per_submap=float(np.median(ts)),
-                n_submaps=sub.n,
-                repeats=reps,
-                load=load(),
-            )
-        )
-        print({k: v for k, v in rows[-1].items()}, flush=True)
-
-
-def roofline(p, inc) -> str:
-    """One sentence: the dominant kernel's work per submap against two cores' capacity."""
-    w = work(p)
-    look = ("prescreen", "score", "refine", "rescore")
-    n_look = sum(w[k] for k in look)
-    flops = sum(w["flops"][k] for k in look)
-    t_look = sum(inc[k] for k in look)
-    # One lookup reads one 16-byte cell (stack4 layout): one vector load for hand-written code.
-    load_ms = 1e3 * n_look / (2 * CORE_GHZ * 1e9 * LOADS_PER_CYCLE)
-    flop_ms = 1e3 * flops / (2 * CORE_GHZ * 1e9 * FLOPS_PER_CYCLE)
-    bound = max(load_ms, flop_ms)
-    share = 100 * t_look / sum(inc.values())
-    return (
-        f"field lookups (prescreen + score + refine + rescore, {share:.0f}% of the time): "
-        f"{n_look / 1e3:.0f} k per submap, {16 * n_look / 1e6:.1f} MB of "
-        f"16-byte cells and {flops / 1e6:.0f} MFLOP; measured {t_look:.2f} ms = "
-        f"{1e6 * t_look / n_look:.1f} ns per lookup. Two cores ({CORE_GHZ} GHz, "
-        f"{LOADS_PER_CYCLE} loads and {FLOPS_PER_CYCLE} flop per cycle each) would issue the "
-        f"loads in {load_ms:.3f} ms and the flops in {flop_ms:.3f} ms: {t_look / bound:.0f}x "
-        f"away, because XLA:CPU runs the batch on one core and gathers one scalar at a time "
-        f"(four per lookup) from cells scattered over the plan. Pose accumulator: at most "
-        f"{w['peaks'] / 1e3:.0f} k pairwise window tests per submap (the tables run on the "
-        f"smallest of {p.max_votes // 4}, {p.max_votes // 2}, {p.max_votes} votes that holds "
-        f"the valid ones; most submaps cast about 100) in {inc['peaks']:.2f} ms. Dense "
-        f"hypotheses (one FFT correlation per distinct heading over the plan, then "
-        f"{p.dense_n} polished peaks): {inc['dense']:.2f} ms, "
-        f"{100 * inc['dense'] / sum(inc.values()):.0f}% of the time."
-    )
+from mfcl_jax.windows.arrays import pad_submaps  # noqa: E402
 
 
 def main(seeds=(0, 1), out=Path("results"), quick=False):
@@ -404,45 +137,6 @@ def main(seeds=(0, 1), out=Path("results"), quick=False):
     tdf.to_csv(out / "frontend_timing.csv", index=False)
     figure(df, pd.DataFrame(errs), tdf, p, out / "frontend.png")
     return df, tdf
-
-
-def figure(df, ed, tdf, p, path):
-    fig, ax = plt.subplots(1, 4, figsize=(21, 4.2))
-    for name, g in ed.groupby("scene"):
-        ax[0].hist(
-            np.clip(g.top1_err_m, 1e-3, 30), bins=np.geomspace(1e-3, 30, 60), alpha=0.6, label=name
-        )
-    for x, lab in ((7.3, "bay 7.3 m"), (14.4, "room 14.4 m")):
-        ax[0].axvline(x, color="k", ls=":", lw=0.8)
-        ax[0].text(x, ax[0].get_ylim()[1] * 0.9, lab, rotation=90, fontsize=7, ha="right")
-    ax[0].set_xscale("log")
-    ax[0].set_xlabel("top-1 position error (m)")
-    ax[0].set_ylabel("submaps")
-    ax[0].legend(fontsize=8)
-    for name, g in df.groupby("scene"):
-        ax[1].plot(g.d_s, g.recall_at_J, "o-", label=f"{name} recall@{p.J}")
-        ax[1].plot(g.d_s, g.top1, "s--", label=f"{name} top-1")
-    ax[1].axhline(0.95, color="k", ls=":", lw=0.8)
-    ax[1].set_xlabel("d_s (m)")
-    ax[1].set_ylim(0, 1.05)
-    ax[1].legend(fontsize=8)
-    x = np.arange(len(df))
-    lab = [f"{s[:5]} {d:g}" for s, d in zip(df.scene, df.d_s, strict=True)]
-    ax[2].bar(x - 0.2, 100 * df.err_before_m, 0.4, label="before refinement (median)")
-    ax[2].bar(x + 0.2, 100 * df.err_after_m, 0.4, label="after (same candidate)")
-    ax[2].errorbar(x - 0.2, 100 * df.err_before_p90_m, fmt="k_", label="90th pct")
-    ax[2].errorbar(x + 0.2, 100 * df.err_after_p90_m, fmt="k_")
-    ax[2].set_xticks(x, lab, rotation=30, fontsize=8)
-    ax[2].set_ylabel("position error of the true candidate (cm)")
-    ax[2].legend(fontsize=8)
-    st = tdf[tdf.kind == "stage"]
-    ax[3].barh(st.stage, st.ms_per_submap)
-    ax[3].invert_yaxis()
-    total = st.ms_cumulative.max()
-    ax[3].set_xlabel(f"ms per submap (chunk {CHUNK}, P {P_STUDY}; total {total:.1f})")
-    ax[3].set_title("stage profile (one run, interleaved medians)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":

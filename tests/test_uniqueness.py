@@ -62,6 +62,12 @@ def test_a_unique_path_commits_no_later_than_the_count_and_at_the_truth():
     assert np.isnan(d.llr[:, 0]).all()  # the count lane reports no ratio
     dxy, dth = se2.distance_pair(d.anchor[k_u, 1], A)
     assert float(dxy) < 0.3 and np.rad2deg(float(dth)) < 2.0
+    # the test's own placement A* is reported where it ran (what its ratio is judged by), and
+    # the commit it makes is to A*; zero where it did not run
+    tested = ~np.isnan(d.llr[:, 1])
+    np.testing.assert_array_equal(d.test_anchor[k_u, 1], d.anchor[k_u, 1])
+    assert (np.abs(d.test_anchor[tested, 1]).sum(-1) > 0).all()
+    assert not d.test_anchor[~tested, 1].any() and not d.test_anchor[:, 0].any()
 
 
 def test_a_walk_inside_one_of_four_congruent_rooms_never_commits():

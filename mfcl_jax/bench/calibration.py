@@ -5,9 +5,12 @@ one outside its neighbourhood: ``llr = L(A*) - L(competitor)``. Under its observ
 wrong placement reaches a ratio ``llr`` against the truth with probability at most
 ``exp(-llr)`` (Wald's bound), so a lane with error rate ``alpha`` commits at
 ``llr >= log(1 / alpha)``. This table checks the model where it matters: in every window where
-the test ran and no veto held, was the layer's anchor (which a veto keeps within the grouping
-tolerance of ``A*``) right or wrong, binned by the ratio. A wrong anchor in a bin above a
-lane's threshold is a false commit that lane would have made or did make.
+the test ran and no veto held, was ``A*`` (the placement a lane commits to when the test holds,
+``test_correct``) right or wrong, binned by the ratio. A wrong ``A*`` in a bin above a lane's
+threshold is a false commit that lane would have made or did make. Tables written before
+``A*`` was recorded judge the layer's reported anchor instead (``correct``: the window's
+champion, within the grouping tolerance of ``A*`` by a veto, or the commit itself), which can
+be wrong by a few degrees where ``A*``, fitted to the whole path, is not.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ def ratio_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> 
 
     Args:
         windows: the benchmark's per-window table (``windows.csv.gz``: ``policy, fault, llr,
-            correct``).
+            test_correct`` or, in older tables, ``correct``).
         policy: the lane read (the test is shared by the uniqueness lanes; ``alpha = 1e-6``
             keeps testing longest, as it commits last).
 
@@ -38,10 +41,11 @@ def ratio_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> 
         unvetoed and judged, and of them the anchor past the false-commit line),
         ``fault_windows`` and ``fault_wrong`` (the same over the fault rows).
     """
+    judged = "test_correct" if "test_correct" in windows else "correct"
     w = windows[(windows["policy"] == policy) & windows["llr"].notna()]
-    w = w[(w["llr"] > -np.inf) & w["correct"].notna()]
+    w = w[(w["llr"] > -np.inf) & w[judged].notna()]
     fault = w["fault"].fillna("").astype(str) != ""
-    wrong = ~w["correct"].astype(bool)
+    wrong = ~w[judged].astype(bool)
     rows = []
     for lo, hi in zip(EDGES[:-1], EDGES[1:], strict=True):
         b = (w["llr"] >= lo) & (w["llr"] < hi) if hi < math.inf else w["llr"] >= lo

@@ -91,7 +91,7 @@ def nominal_level_rows(runs: pd.DataFrame, cfg: BenchmarkConfig) -> pd.DataFrame
 
 WINDOW_COLS = ["run", "name", "family", "fault", "level", "policy", "k", "state", "kind",
                "reason", "B1", "B2", "margin", "n_groups", "x", "y", "yaw_deg", "err_xy",
-               "err_yaw_deg", "correct", "ident_k", "metres", "llr"]  # fmt: skip
+               "err_yaw_deg", "correct", "ident_k", "metres", "llr", "test_correct"]  # fmt: skip
 
 
 def _write_windows(scored: pd.DataFrame, labels, out: Path) -> None:

@@ -107,6 +107,7 @@ def _decision(state, anchor, reason, max_score, b1=0, b2=0, n=0, c=0.0, gate=Fal
         n_rejected=zi,
         dropped=zi,
         llr=zf + jnp.nan,
+        test_anchor=jnp.zeros((*shape, 3), jnp.float32),
     )
 
 

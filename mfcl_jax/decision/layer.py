@@ -182,6 +182,7 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
             # the ratio where the test ran and no veto held (-inf: vetoed), for reading
             "llr": jnp.where(uu & uniq.ran, jnp.where(uniq.vetoed, -jnp.inf, uniq.llr),
                              raw.llr),
+            "test_anchor": jnp.where(uu & uniq.ran, uniq.anchor, raw.test_anchor),
         })  # fmt: skip
         return machine.step(hl, raw, newest, p, ug)
 

@@ -69,6 +69,9 @@ class Decision:
     # the uniqueness test's log-likelihood ratio of the path, best placement against the best
     # other one (``uniqueness``; NaN where it did not run, +inf with no other placement)
     llr: jax.Array
+    # (3,) the uniqueness test's best placement A* of the path (the anchor it commits to where
+    # it holds; zero where it did not run): what its ratio is judged by
+    test_anchor: jax.Array
 
 
 jax.tree_util.register_dataclass(

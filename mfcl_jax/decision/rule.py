@@ -262,4 +262,5 @@ def finish(c: Core, cert: certify.CertStats, sym, p, use_gate, use_probe, use_ce
         n_rejected=zero_i,
         dropped=zero_i,
         llr=jnp.float32(jnp.nan),
+        test_anchor=jnp.zeros_like(g.t_star),
     )

@@ -97,6 +97,18 @@ def decisions_frame(decisions) -> pd.DataFrame:
     return df.astype({"segment": np.int64})
 
 
+def _errors(df, cols, X, Y):
+    """``(has, placed, err_xy, err_yaw_rad)`` of the anchors in columns ``cols`` (x, y,
+    yaw in degrees; NaN: none) at odometry poses ``X`` against the truth ``Y``."""
+    A = df[list(cols)].to_numpy(np.float64, copy=True)
+    A[:, 2] = np.deg2rad(A[:, 2])
+    has = np.all(np.isfinite(A), 1)
+    placed = se2.compose_host(np.where(has[:, None], A, 0.0), X)
+    dxy = np.hypot(placed[:, 0] - Y[:, 0], placed[:, 1] - Y[:, 1])
+    dth = np.abs(np.angle(np.exp(1j * (placed[:, 2] - Y[:, 2]))))
+    return has, placed, dxy, dth
+
+
 def score_rows(
     df: pd.DataFrame, odom_times, odom, gt_times, gt, floorplan=None, where: str = "<decisions>"
 ) -> pd.DataFrame:
@@ -109,7 +121,8 @@ def score_rows(
         floorplan: optional, adds the placed and true room names.
 
     Returns:
-        A copy with ``err_xy, err_yaw_deg, correct`` (NaN / False without an anchor),
+        A copy with ``err_xy, err_yaw_deg, correct`` (NaN / False without an anchor), with
+        ``test_correct`` where ``df`` has the uniqueness test's placement (``test_x``, ...),
         ``true_x, true_y, placed_x, placed_y`` and, with a floor plan, ``room, true_room``.
     """
     df = df.copy()
@@ -120,15 +133,15 @@ def score_rows(
     t = df["t"].to_numpy(np.float64)
     X = pose_at(odom_times, odom, t, f"{where} (odometry)")
     Y = pose_at(gt_times, gt, t, f"{where} (ground truth)")
-    A = df[["x", "y", "yaw_deg"]].to_numpy(np.float64, copy=True)
-    A[:, 2] = np.deg2rad(A[:, 2])
-    has = np.all(np.isfinite(A), 1)
-    placed = se2.compose_host(np.where(has[:, None], A, 0.0), X)
-    dxy = np.hypot(placed[:, 0] - Y[:, 0], placed[:, 1] - Y[:, 1])
-    dth = np.abs(np.angle(np.exp(1j * (placed[:, 2] - Y[:, 2]))))
+    has, placed, dxy, dth = _errors(df, ("x", "y", "yaw_deg"), X, Y)
     df["err_xy"] = np.where(has, dxy, np.nan)
     df["err_yaw_deg"] = np.where(has, np.degrees(dth), np.nan)
     df["correct"] = has & (df["err_xy"] < CORRECT_XY) & (df["err_yaw_deg"] < CORRECT_YAW_DEG)
+    if "test_x" in df:
+        # the uniqueness test's own placement, judged by the same line (NaN: not tested)
+        t_has, _, t_xy, t_th = _errors(df, ("test_x", "test_y", "test_yaw_deg"), X, Y)
+        ok = (t_xy < CORRECT_XY) & (np.degrees(t_th) < CORRECT_YAW_DEG)
+        df["test_correct"] = pd.Series(ok, index=df.index).astype("boolean").mask(~t_has)
     df["true_x"], df["true_y"] = Y[:, 0], Y[:, 1]
     df["placed_x"] = np.where(has, placed[:, 0], np.nan)
     df["placed_y"] = np.where(has, placed[:, 1], np.nan)

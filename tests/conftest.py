@@ -29,21 +29,25 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 # (``pytest -n 0 --durations=0``, rounded); a new file counts 1 until it is added here.
 GROUPS = {
     "decision": (
-        "test_decision_layer", "test_decision_rotation", "test_decision_machine",
+        "test_decision_layer", "test_decision_invariance", "test_decision_stepwise",
+        "test_decision_consensus", "test_decision_rotation", "test_decision_machine",
         "test_decision_gate", "test_decision_drift", "test_decision_scenes", "test_uniqueness",
         "test_rivals", "test_path_llr",
     ),
     "robot": (
-        "test_cli", "test_cli_3d", "test_viz", "test_cli_segments", "test_cli_live",
-        "test_cli_status", "test_cli_signals", "test_cli_inputs", "test_cli_many", "test_traced",
-        "test_plan_frame", "test_safe_output", "test_input_rates",
+        "test_cli", "test_cli_3d", "test_viz", "test_viz_writer", "test_cli_segments",
+        "test_cli_live", "test_cli_status", "test_cli_signals", "test_cli_inputs", "test_cli_many",
+        "test_traced", "test_plan_frame", "test_safe_output", "test_input_rates",
+        "test_input_units", "test_input_bags",
     ),
-    "frontend": ("test_frontend", "test_frontend_driver"),
-    "benchmark": ("test_benchmark", "test_launcher"),
+    "frontend": ("test_frontend", "test_frontend_kernels", "test_frontend_driver"),
+    "benchmark": ("test_benchmark", "test_benchmark_tables", "test_launcher"),
+    "families": ("test_families", "test_family_symmetry", "test_family_faults"),
+    "mcl": ("test_mcl", "test_mcl_model"),
 }  # fmt: skip
 WEIGHTS = {
     "decision": 125, "robot": 85, "benchmark": 58, "frontend": 48, "test_study": 45,
-    "test_mcl": 35, "test_real_floorplans": 13, "test_families": 10, "test_sim": 8,
+    "mcl": 35, "test_real_floorplans": 13, "families": 10, "test_sim": 8,
 }  # fmt: skip
 _GROUP_OF = {f: g for g, files in GROUPS.items() for f in files}
 

@@ -1,4 +1,5 @@
-"""Procedural building families: validity, free walks, determinism, symmetry, faults, files."""
+"""Procedural building families: registry, validity, free walks, determinism, files and the
+simulator on every walk (symmetry: test_family_symmetry.py; faults: test_family_faults.py)."""
 
 from __future__ import annotations
 
@@ -9,52 +10,19 @@ import pytest
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shapely import affinity
-from shapely.geometry import LineString, MultiLineString
+from shapely.geometry import LineString
 
 from mfcl_jax.floorplan.geojson import load_geojson
 from mfcl_jax.report.plots_scene import plot_family
-from mfcl_jax.sim.families import (
-    FAMILIES,
-    NotApplicable,
-    make_scene,
-    with_as_built,
-    with_clutter,
-    with_scale_error,
-    write_family_geojson,
-)
+from mfcl_jax.sim.families import FAMILIES, make_scene, with_as_built, write_family_geojson
 from mfcl_jax.sim.scenes import Scene
 from mfcl_jax.sim.trajectory import sample_path
-
-SEEDS = range(5)
+from tests._families import SEEDS, _driven, _min_dist, _same_region, all_scenes
 
 
 @pytest.fixture(scope="module")
 def scenes():
-    return {(f, s): make_scene(f, s) for f in FAMILIES for s in SEEDS}
-
-
-def _dense(wp, step=0.05):
-    wp = np.asarray(wp, float)
-    out = [wp[:1]]
-    for a, b in zip(wp[:-1], wp[1:], strict=True):
-        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
-        out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
-    return np.concatenate(out)
-
-
-def _driven(wp):
-    """Points along the waypoint polyline and along the smoothed path the simulator drives."""
-    return np.concatenate([_dense(wp), sample_path(wp).poses[:, :2]])
-
-
-def _min_dist(points, segments) -> float:
-    lines = MultiLineString([s for s in np.asarray(segments)])
-    return float(np.min(shapely.distance(lines, shapely.points(points))))
-
-
-def _same_region(a, b, tol=1e-6) -> bool:
-    return a.symmetric_difference(b).area < tol
+    return all_scenes()
 
 
 # ---------------------------------------------------------------------------- registry
@@ -160,187 +128,6 @@ def test_deterministic_and_seed_dependent():
         walls = [make_scene(family, s).floorplan.wall_solid for s in (0, 1, 2)]
         assert not _same_region(walls[0], walls[1], 0.01)
         assert not _same_region(walls[1], walls[2], 0.01)
-
-
-# ---------------------------------------------------------------------------- symmetry
-def _centre(fp):
-    x0, y0, x1, y1 = fp.bounds
-    return ((x0 + x1) / 2, (y0 + y1) / 2)
-
-
-def _rot_maps(fp, deg) -> bool:
-    solid = fp.wall_solid
-    return _same_region(affinity.rotate(solid, deg, origin=_centre(fp)), solid)
-
-
-def _mirror_maps(fp) -> bool:
-    solid = fp.wall_solid
-    return _same_region(affinity.scale(solid, -1.0, 1.0, origin=_centre(fp)), solid)
-
-
-def test_bays_are_exact_translated_copies(scenes):
-    for s in SEEDS:
-        fp = scenes["bays", s].floorplan
-        bays = [r.polygon for r in fp.rooms if r.name.startswith("B")]
-        assert 3 <= len(bays) <= 6
-        c = np.array([[p.centroid.x, p.centroid.y] for p in bays])
-        pitch = np.diff(c[:, 0])
-        np.testing.assert_allclose(pitch, pitch[0], atol=1e-9)
-        np.testing.assert_allclose(c[:, 1], c[0, 1], atol=1e-9)
-        for p, ck in zip(bays, c, strict=True):
-            moved = affinity.translate(p, *(c[0] - ck))
-            iou = moved.intersection(bays[0]).area / moved.union(bays[0]).area
-            assert iou > 1 - 1e-9
-        # Doors at the same place in every bay.
-        doors = [d for d in fp.doors if any(r.startswith("B") for r in d.rooms)]
-        rel = [d.segment.mean(0) - c[k] for k, d in enumerate(doors)]
-        np.testing.assert_allclose(np.asarray(rel) - rel[0], 0.0, atol=1e-9)
-
-
-def test_rotational_symmetry_as_described():
-    seen = set()
-    for s in range(16):
-        sc = make_scene("rotational", s)
-        fp, desc = sc.floorplan, sc.description
-        fold = 4 if "4-fold" in desc else 2
-        exact = desc.endswith("exact")
-        seen.add((fold, exact, "cross" if "cross" in desc else "loop"))
-        assert _rot_maps(fp, 360 / fold) == exact, sc.name
-        if exact:
-            assert _rot_maps(fp, 180)
-            assert _rot_maps(fp, 90) == (fold == 4), sc.name
-            assert not _mirror_maps(fp), sc.name  # rotations only, no mirror
-    assert {(f, e) for f, e, _ in seen} == {(2, True), (2, False), (4, True), (4, False)}
-    assert {lay for *_, lay in seen} == {"cross", "loop"}
-
-
-def test_mirror_maps_onto_itself_but_not_by_a_half_turn(scenes):
-    for s in SEEDS:
-        fp = scenes["mirror", s].floorplan
-        assert _mirror_maps(fp) and not _rot_maps(fp, 180), fp.name
-        for room in fp.rooms:
-            if room.name.startswith("E"):
-                twin = fp.room("W" + room.name[1:]).polygon
-                assert _same_region(affinity.scale(room.polygon, -1.0, 1.0, origin=(0, 0)), twin)
-
-
-def test_family_shapes(scenes):
-    for s in SEEDS:
-        fp = {f: scenes[f, s].floorplan for f in FAMILIES}
-        assert 4 <= len(fp["plain"].rooms) <= 9
-        offices = [r.polygon.area for r in fp["offices"].rooms if r.name.startswith("O")]
-        assert 8 <= len(offices) <= 20 and max(offices) / min(offices) < 1.08
-        ring = fp["ring"].room("K").polygon
-        assert len(ring.interiors) == 1  # the ring corridor is one room with a hole
-        x0, y0, x1, y1 = fp["corridor"].room("C").polygon.bounds
-        assert 29.5 <= x1 - x0 <= 60.0 and 1.8 - 1e-9 <= y1 - y0 <= 3.0 + 1e-9
-        hall = fp["hall"].room("H").polygon
-        hx0, hy0, hx1, hy1 = hall.bounds
-        assert len(hall.interiors) >= 4 and 19.5 <= min(hx1 - hx0, hy1 - hy0) <= 40
-
-
-# ---------------------------------------------------------------------------- faults
-def _same_scene_parts(a, b, plan=True, clutter=True, walks=True):
-    if plan:
-        assert a.floorplan is b.floorplan
-    if clutter:
-        np.testing.assert_array_equal(a.clutter, b.clutter)
-    if walks:
-        for k in a.trajectories:
-            np.testing.assert_array_equal(a.trajectories[k], b.trajectories[k])
-
-
-def _walks_clear(sc):
-    for wp in sc.trajectories.values():
-        assert _min_dist(_driven(wp), sc.segments) >= 0.35, sc.name
-
-
-def test_scale_error_changes_the_plan_only():
-    sc = make_scene("offices", 1)
-    bad = with_scale_error(sc, 1.02)
-    _same_scene_parts(sc, bad, plan=False)
-    np.testing.assert_array_equal(bad.segments, sc.segments)  # the LiDAR's world is the same
-    c = np.asarray(_centre(sc.floorplan))
-    np.testing.assert_allclose(bad.floorplan.walls, c + 1.02 * (sc.floorplan.walls - c))
-    np.testing.assert_allclose(bad.floorplan.room_areas, 1.02**2 * sc.floorplan.room_areas)
-    assert bad.floorplan.room_names == sc.floorplan.room_names
-    assert sc.as_built is None  # the input scene is untouched
-    with pytest.raises(ValueError, match="factor"):
-        with_scale_error(sc, 0.0)
-
-
-@pytest.mark.parametrize("family,seed", [("plain", 0), ("bays", 2), ("ring", 1), ("corridor", 0)])
-def test_missing_wall(family, seed):
-    sc = make_scene(family, seed)
-    dev = with_as_built(sc, "missing_wall", seed)
-    _same_scene_parts(sc, dev)
-    solid = sc.floorplan.wall_solid
-    # Reality is the plan with something taken away: every real face lies on or in the
-    # plan's walls, and some plan faces are gone.
-    mids = shapely.points(dev.as_built.mean(axis=1))
-    assert (shapely.distance(solid, mids) < 1e-6).all()
-    plan_mids = sc.floorplan.wall_faces.mean(axis=1)
-    gone = [_min_dist(m[None], dev.as_built) > 1e-3 for m in plan_mids]
-    assert any(gone)
-    _walks_clear(dev)
-
-
-@pytest.mark.parametrize("family,seed", [("plain", 1), ("offices", 0), ("mirror", 2)])
-def test_extra_partition(family, seed):
-    sc = make_scene(family, seed)
-    dev = with_as_built(sc, "extra_partition", seed)
-    _same_scene_parts(sc, dev)
-    inner = sc.floorplan.wall_solid.buffer(-1e-6)
-    mids = dev.as_built.mean(axis=1)
-    assert not shapely.contains_xy(inner, mids[:, 0], mids[:, 1]).any()  # nothing removed
-    is_new = shapely.distance(sc.floorplan.wall_solid.boundary, shapely.points(mids)) > 1e-6
-    assert is_new.sum() >= 2 and np.ptp(mids[is_new], axis=0).max() < 3.2  # one small partition
-    for wp in sc.trajectories.values():
-        assert _min_dist(_driven(wp), dev.as_built[is_new]) >= 0.5
-    _walks_clear(dev)
-
-
-@pytest.mark.parametrize("family,seed", [("bays", 0), ("offices", 2), ("rotational", 1)])
-def test_moved_door(family, seed):
-    sc = make_scene(family, seed)
-    dev = with_as_built(sc, "moved_door", seed)
-    _same_scene_parts(sc, dev, walks=False)
-    # The faces round exactly one door of the plan moved; walks still clear reality.
-    centres = shapely.points([d.segment.mean(0) for d in sc.floorplan.doors])
-    plan = shapely.distance(MultiLineString(list(sc.floorplan.wall_faces)), centres)
-    real = shapely.distance(MultiLineString(list(dev.as_built)), centres)
-    assert (np.abs(real - plan) > 1e-6).sum() == 1
-    _walks_clear(dev)
-    with pytest.raises(ValueError, match="already has as-built"):
-        with_as_built(dev, "moved_door", 0)
-
-
-def test_as_built_errors():
-    sc = make_scene("hall", 0)  # no doors, no interior walls
-    with pytest.raises(ValueError, match="kind='nope'"):
-        with_as_built(sc, "nope", 0)
-    with pytest.raises(NotApplicable, match="no door"):  # the benchmark skips such runs
-        with_as_built(sc, "moved_door", 0)
-
-
-@pytest.mark.parametrize("fraction", [0.05, 0.3])
-def test_with_clutter(fraction):
-    sc = make_scene("plain", 2)
-    more = with_clutter(sc, fraction, 7)
-    _same_scene_parts(sc, more, clutter=False)
-    assert more.as_built is None
-    k = len(sc.clutter)
-    np.testing.assert_array_equal(more.clutter[:k], sc.clutter)
-    new = more.clutter[k:].reshape(-1, 4, 2, 2)  # axis-aligned rectangles, four sides each
-    lo, hi = new.min(axis=(1, 2)), new.max(axis=(1, 2))
-    area = np.prod(hi - lo, axis=1).sum() / sc.floorplan.room_areas.sum()
-    got = float(more.description.split("clutter +")[1].split()[0])
-    assert abs(got - area) < 1e-3 and got >= min(fraction, 0.2) - 0.01
-    for wp in sc.trajectories.values():
-        assert _min_dist(_driven(wp), more.clutter[k:]) >= 0.5 - 1e-9
-    assert with_clutter(sc, fraction, 7).clutter.tobytes() == more.clutter.tobytes()
-    with pytest.raises(ValueError, match="area_fraction"):
-        with_clutter(sc, 0.7, 0)
 
 
 # ---------------------------------------------------------------------------- files

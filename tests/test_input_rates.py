@@ -1,83 +1,23 @@
-"""Issue 29, items 1 and 2: odometry at any rate matched to scans by time, and units and
-frames checked (non-unit quaternions, millimetre scans, plan and scans of different scales).
+"""Issue 29, item 1: odometry at any rate matched to scans by time (SE(2) interpolation,
+dataset folders; units and frames: test_input_units.py; bags: test_input_bags.py).
 
 Each test fails on the code before the issue: stamps were matched as strings, one odometry
-line per scan; quaternions were read as if unit; scans were never checked for units.
+line per scan.
 """
 
 from __future__ import annotations
 
 import math
-import re
 import shutil
-import warnings
 
 import numpy as np
 import pytest
-from _bags import VELODYNE, odometry, pointcloud2, quat_yaw, store, tf_message, write_bag
-from shapely.geometry import box
 
-from mfcl_jax.floorplan import Door, Floorplan, Room
-from mfcl_jax.io import DataError, read_bag, read_carmen, read_tum, write_tum
+from mfcl_jax.io import DataError, read_tum, write_tum
 from mfcl_jax.io.errors import DataWarning
 from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2, odometry_at
-from mfcl_jax.io.tum import yaw_from_quat
-from mfcl_jax.sources import from_carmen, from_dataset, load_dataset, write_dataset
-
-T0 = 1000.0
-TS1 = store(ros1=True)
-PC2 = "sensor_msgs/msg/PointCloud2"
-ODOM = "nav_msgs/msg/Odometry"
-TF = "tf2_msgs/msg/TFMessage"
-
-
-def _plan(k: float = 1.0) -> Floorplan:
-    walls = k * np.array(
-        [[[0, 0], [8, 0]], [[8, 0], [8, 4]], [[8, 4], [0, 4]], [[0, 4], [0, 0]],
-         [[4, 0], [4, 1.5]], [[4, 2.5], [4, 4]]], float,
-    )  # fmt: skip
-    return Floorplan(
-        walls=walls,
-        thickness=0.15 * k,
-        rooms=(Room("a", box(0, 0, 4 * k, 4 * k)), Room("b", box(4 * k, 0, 8 * k, 4 * k))),
-        doors=(Door(k * np.array([[4, 1.5], [4, 2.5]]), ("a", "b")),),
-        name=f"plan x{k:g}",
-    )
-
-
-def _truth(t) -> np.ndarray:
-    """A constant-velocity path (so linear interpolation is exact) whose heading crosses pi."""
-    dt = np.asarray(t, np.float64) - T0
-    yaw = np.arctan2(np.sin(2.9 + 0.5 * dt), np.cos(2.9 + 0.5 * dt))
-    return np.stack([1.0 + 0.3 * dt, 2.0 + 0.1 * dt, yaw], -1)
-
-
-def _scans(n, seed=0, k=1.0):
-    rng = np.random.default_rng(seed)
-    return [k * rng.normal(size=(30, 2)) for _ in range(n)]
-
-
-def _scan_times(n=20):
-    # 10 Hz, between the 100 Hz odometry stamps (3.7 ms after each tick).
-    return T0 + 0.1 * np.arange(n) + 0.0037
-
-
-def _dataset(tmp_path, name="ref", times=None, **kw):
-    times = _scan_times() if times is None else times
-    plan = kw.pop("plan", _plan())
-    scans = kw.pop("scans", _scans(len(times)))
-    return write_dataset(tmp_path / name, plan, times, scans, _truth(times), **kw)
-
-
-def _yaw_err(a, b) -> float:
-    return float(np.max(np.abs(np.angle(np.exp(1j * (np.asarray(a) - np.asarray(b)))))))
-
-
-def _quiet(fn, *a, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        return fn(*a, **kw)
-
+from mfcl_jax.sources import from_dataset, load_dataset, write_dataset
+from tests._inputs import T0, _dataset, _plan, _quiet, _scan_times, _scans, _truth, _yaw_err
 
 # ---------------------------------------------------------------- SE(2) interpolation
 
@@ -199,152 +139,6 @@ def test_two_scan_files_at_one_time(tmp_path):
         load_dataset(out)
 
 
-# ---------------------------------------------------------------- quaternions
-
-
-def _tum_lines(yaw_deg, scale):
-    q = scale * np.array(
-        [0, 0, math.sin(math.radians(yaw_deg) / 2), math.cos(math.radians(yaw_deg) / 2)]
-    )
-    return [f"{T0 + i} {i} 0 0 {q[0]:.9g} {q[1]:.9g} {q[2]:.9g} {q[3]:.9g}" for i in range(3)]
-
-
-def test_quaternion_scaled_by_2_warns_and_gives_the_right_yaw(tmp_path):
-    path = tmp_path / "o.tum"
-    path.write_text("\n".join(["# t x y z qx qy qz qw"] + _tum_lines(84.0, 2.0)) + "\n")
-    with pytest.warns(DataWarning) as rec:
-        _, poses = read_tum(path)
-    np.testing.assert_allclose(np.degrees(poses[:, 2]), 84.0, atol=1e-6)  # not 123 deg
-    msg = str(rec[0].message)
-    assert f"{path}:2: quaternion norm 2 differs from 1" in msg and "3 of 3" in msg
-    assert "normalised" in msg and len(rec) == 1
-    assert abs(math.degrees(yaw_from_quat([0, 0, 2 * 0.669130606, 2 * 0.743144825])) - 84) < 1e-6
-
-
-def test_quaternion_within_tolerance_is_quiet(tmp_path):
-    path = tmp_path / "o.tum"
-    path.write_text("\n".join(_tum_lines(30.0, 1.0005)) + "\n")
-    _, poses = _quiet(read_tum, path)
-    np.testing.assert_allclose(np.degrees(poses[:, 2]), 30.0, atol=1e-6)
-
-
-@pytest.mark.parametrize("scale", [0.0, 1e-8])
-def test_degenerate_quaternion_refused(tmp_path, scale):
-    path = tmp_path / "o.tum"
-    lines = _tum_lines(30.0, 1.0)
-    lines[1] = " ".join(lines[1].split()[:4] + [f"{scale * v:.9g}" for v in (0, 0, 0.5, 0.8)])
-    path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(DataError, match=r"o\.tum:2: degenerate quaternion .* norm"):
-        read_tum(path)
-
-
-# ---------------------------------------------------------------- units
-
-
-def test_millimetre_scans_refused_naming_file_and_median(tmp_path):
-    out = _dataset(tmp_path, scans=_scans(20, k=1000.0), plan=_plan())
-    with pytest.raises(DataError) as e:
-        load_dataset(out)
-    msg = str(e.value)
-    assert str(out / "scans" / "1000.0037.pcd") in msg and "millimetres" in msg
-    assert re.search(r"median range \d{4} over the first 20 scans", msg)
-    assert "expects scans in metres" in msg
-
-
-def test_plan_and_scans_of_different_scales_refused(tmp_path):
-    out = _dataset(tmp_path)
-    with pytest.raises(DataError) as e:
-        load_dataset(out, floorplan=_plan(1000.0))
-    msg = str(e.value)
-    assert "plan x1000" in msg and "disagree in scale" in msg and "8150 x 4150 units" in msg
-    assert str(out / "scans") in msg and "both in metres" in msg
-    assert len(_quiet(load_dataset, out, floorplan=_plan(3.0))) == 20  # a larger building
-
-
-def _flaser(t, readings, x=0.0):
-    r = " ".join(f"{v:g}" for v in readings)
-    return f"FLASER {len(readings)} {r} {x} 0 0 {x} 0 0 {t} host {t}\n"
-
-
-def test_carmen_millimetres_refused_and_odometry_through_timesync(tmp_path):
-    good = tmp_path / "g.log"
-    good.write_text("".join(_flaser(1.0 + i, [2.0, 3.0, 4.0], x=i) for i in range(4)))
-    log = _quiet(read_carmen, good)
-    seq = from_carmen(log)
-    np.testing.assert_array_equal(seq.odometry[:, 0], [0, 1, 2, 3])
-    with pytest.raises(DataError, match=r"g\.log: 3 odometry poses for 4 FLASER lines"):
-        from_carmen(log, odometry=np.zeros((3, 3)), source=str(good))
-    mm = tmp_path / "mm.log"
-    mm.write_text("".join(_flaser(1.0 + i, [2000.0, 3000.0, 4000.0]) for i in range(4)))
-    with pytest.raises(DataError) as e:
-        read_carmen(mm)
-    assert f"{mm}:1: scan ranges look like millimetres" in str(e.value)
-    assert "median range 3000" in str(e.value)
-
-
-# ---------------------------------------------------------------- bags
-
-
-def _cloud(t, k=1.0):
-    xyz = np.random.default_rng(int(t * 10)).uniform(-8, 8, size=(16, 3)).astype(np.float32)
-    return pointcloud2(TS1, t, k * xyz, VELODYNE)
-
-
-def _bag(tmp_path, odom_msgs, k=1.0, name="r.bag"):
-    scans = [("/points", PC2, t, _cloud(t, k)) for t in _scan_times(10)]
-    return write_bag(tmp_path / name, TS1, odom_msgs + scans)
-
-
-def _odom_msgs(times, q_scale=1.0):
-    return [
-        ("/odom", ODOM, t, odometry(TS1, t, *map(float, _truth(t)), q_scale=q_scale)) for t in times
-    ]
-
-
-def test_bag_odom_at_100hz_interpolated_and_outside_scans_warned(tmp_path):
-    t100 = T0 + 0.2 + 0.01 * np.arange(81)  # scans 2..9 of 10 inside
-    path = _bag(tmp_path, _odom_msgs(t100))
-    with pytest.warns(DataWarning, match=r"r\.bag /odom: 2 of 10 scans lie outside"):
-        bag = read_bag(path, scan_topic="/points")
-    assert len(bag) == 8 and bag.unpaired == 2
-    np.testing.assert_allclose(bag.odometry[:, :2], _truth(bag.times)[:, :2], atol=1e-6)
-    assert _yaw_err(bag.odometry[:, 2], _truth(bag.times)[:, 2]) < 1e-6
-
-
-def test_bag_odometry_quaternions_scaled_by_2(tmp_path):
-    t100 = T0 + 0.01 * np.arange(101)
-    path = _bag(tmp_path, _odom_msgs(t100, q_scale=2.0))
-    with pytest.warns(DataWarning, match=r"r\.bag /odom t=1000\.0+: quaternion norm 2 differs"):
-        bag = read_bag(path, scan_topic="/points")
-    assert _yaw_err(bag.odometry[:, 2], _truth(bag.times)[:, 2]) < 1e-6
-    zero = _bag(tmp_path, _odom_msgs(t100, q_scale=0.0), name="z.bag")
-    with pytest.raises(DataError, match=r"z\.bag /odom t=1000\.0+: degenerate quaternion"):
-        read_bag(zero, scan_topic="/points")
-
-
-def test_bag_odometry_from_tf(tmp_path):
-    t100 = T0 + 0.01 * np.arange(101)
-    tfs = [
-        ("/tf", TF, t, tf_message(TS1, [("odom", "base_link", (*_truth(t)[:2], 0.0),
-                                         quat_yaw(_truth(t)[2]))], t=t))
-        for t in t100
-    ]  # fmt: skip
-    path = _bag(tmp_path, tfs)
-    bag = _quiet(read_bag, path, scan_topic="/points", odom_topic="/tf")
-    np.testing.assert_allclose(bag.odometry[:, :2], _truth(bag.times)[:, :2], atol=1e-6)
-    assert _yaw_err(bag.odometry[:, 2], _truth(bag.times)[:, 2]) < 1e-6
-    with pytest.raises(DataError, match=r"no transform map -> base_link; .* odom -> base_link"):
-        read_bag(path, scan_topic="/points", odom_topic="/tf", odom_frames=("map", "base_link"))
-
-
-def test_bag_millimetre_scans_refused(tmp_path):
-    path = _bag(tmp_path, _odom_msgs(T0 + 0.01 * np.arange(101)), k=1000.0)
-    with pytest.raises(DataError) as e:
-        read_bag(path, scan_topic="/points")
-    assert "r.bag /points scan at t=1000.003700000" in str(e.value)
-    assert "millimetres" in str(e.value) and "expects scans in metres" in str(e.value)
-
-
 def test_a_dataset_written_with_100hz_odometry_loads_like_one_pose_per_scan(tmp_path):
     """``write_dataset(odom_times=...)`` (``mfcl simulate --odom-rate``) writes the odometry
     at its own rate and stamps; the loader interpolates it back at the scans' stamps."""
@@ -363,20 +157,3 @@ def test_a_dataset_written_with_100hz_odometry_loads_like_one_pose_per_scan(tmp_
         write_dataset(tmp_path / "bad", _plan(), times, _scans(len(times)), _truth(times),
                       odom_times=t100)  # fmt: skip
     assert not (tmp_path / "bad").exists()
-
-
-def test_a_carmen_log_against_a_plan_of_another_scale_is_refused(tmp_path, capsys):
-    """``mfcl localize --carmen`` checks the plan's scale against the scans' as a dataset
-    folder does (here a plan far smaller than what the scans see)."""
-    from mfcl_jax.cli import main
-    from mfcl_jax.floorplan.geojson import save_geojson
-
-    log = tmp_path / "g.log"
-    log.write_text("".join(_flaser(1.0 + i, [2.0, 3.0, 4.0] * 60, x=0.1 * i) for i in range(6)))
-    plan = save_geojson(_plan(0.01), tmp_path / "plan_small.geojson")  # 8 cm: scans see past it
-    out = tmp_path / "d.jsonl"
-    rc = main(["localize", "--carmen", str(log), "--floorplan", str(plan), "--out", str(out),
-               "--quiet"])  # fmt: skip
-    err = capsys.readouterr().err
-    assert rc == 2 and "disagree in scale" in err and str(plan) in err, err
-    assert not out.exists()

@@ -63,6 +63,29 @@ def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors(
     assert t["wrong"].tolist() == [1, 0, 0, 1, 0, 0, 0, 0]
     assert t["fault_windows"].sum() == 1 and t["fault_wrong"].tolist()[4] == 1
     assert t["bound"].iloc[4] == pytest.approx(1e-2)
+    # judged by the test's own placement where the table records it (test_correct), not by
+    # the reported anchor: a champion a few degrees off under a right A* is not a wrong A*
+    w["test_correct"] = [True, False, True, True, True, None, None, None, None, False]
+    t = ratio_calibration(w)
+    assert t["windows"].tolist() == [2, 0, 0, 1, 1, 0, 0, 1]
+    assert t["wrong"].tolist() == [1, 0, 0, 0, 0, 0, 0, 0]
+
+
+def test_score_rows_judge_the_uniqueness_tests_placement_by_the_same_line():
+    """``test_correct``: the uniqueness test's placement (``test_x, test_y, test_yaw_deg``)
+    against the truth by the 1 m / 5 deg line of ``correct``; missing where it did not run."""
+    from mfcl_jax.score.decisions import score_rows
+
+    t = np.array([0.0, 1.0, 2.0])
+    odom = np.zeros((3, 3))
+    gt = np.array([[1.0, 2.0, 0.1]] * 3)
+    yaw = np.rad2deg(0.1)
+    df = pd.DataFrame({"k": [1, 2, 3], "t": t, "x": [1.0] * 3, "y": [2.0] * 3,
+                       "yaw_deg": [yaw + 6.0] * 3, "test_x": [1.0, 2.5, np.nan],
+                       "test_y": [2.0, 2.0, np.nan], "test_yaw_deg": [yaw] * 3})  # fmt: skip
+    s = score_rows(df, t, odom, t, gt)
+    assert not s["correct"].any()  # the reported anchor is 6 deg off
+    assert s["test_correct"].tolist()[:2] == [True, False] and pd.isna(s["test_correct"].iloc[2])
 
 
 def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():

@@ -18,7 +18,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCRIPTS = sorted((ROOT / "benchmarks").glob("*.py"))
-OWN = ("mfcl_jax", "tests")
+OWN = ("mfcl_jax", "tests", "benchmarks")
 
 
 def _own(module: str | None) -> bool:

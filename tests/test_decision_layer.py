@@ -155,6 +155,9 @@ def test_frame_has_one_row_per_run_window_lane():
     df = to_frame(base_out(), spec)
     assert len(df) == K * len(NAMES)
     assert {"state", "kind", "x", "y", "yaw_deg", "tau_x", "B1", "B2", "margin"} <= set(df.columns)
+    # the uniqueness test's placement only where a lane runs it (the study's raw table keeps
+    # its columns)
+    assert not spec.unique and "test_x" not in df
 
 
 def test_a_path_that_leaves_the_map_is_never_committed():

@@ -35,8 +35,9 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
     is held); ``tau_x, tau_y`` are NaN unless the kind is translation; ``alt_x, alt_y,
     alt_yaw_deg`` hold the strongest competing explanation of an AMBIGUOUS decision
     (``Decision.competitor``), NaN otherwise. A rotational alias is reported by ``kind ==
-    "rotation"``; its self-motion stays in ``Decision.alias_motion``. ``test_x, test_y,
-    test_yaw_deg``: the uniqueness test's best placement where it ran (``llr`` not NaN).
+    "rotation"``; its self-motion stays in ``Decision.alias_motion``. Where a lane runs the
+    uniqueness test (``spec.unique``), ``test_x, test_y, test_yaw_deg`` hold its best placement
+    where it ran (``llr`` not NaN).
     """
     d = dec
     r, k, n_lanes = d.state.shape
@@ -48,8 +49,6 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
     anchor = d.anchor.reshape(-1, 3)
     comp = d.competitor.reshape(-1, 3)
     tau = d.tau.reshape(-1, 2)
-    tested = ~np.isnan(d.llr.ravel())
-    test = np.where(tested[:, None], d.test_anchor.reshape(-1, 3), np.nan)
     df = pd.DataFrame(
         {
             "run": ir,
@@ -83,11 +82,13 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
             "searched": d.searched.ravel(),
             "n_rejected_nan": d.n_rejected.ravel(),
             "llr": d.llr.ravel(),
-            "test_x": test[:, 0],
-            "test_y": test[:, 1],
-            "test_yaw_deg": np.rad2deg(test[:, 2]),
         }
     )
+    if spec.unique:
+        tested = ~np.isnan(d.llr.ravel())
+        test = np.where(tested[:, None], d.test_anchor.reshape(-1, 3), np.nan)
+        df["test_x"], df["test_y"] = test[:, 0], test[:, 1]
+        df["test_yaw_deg"] = np.rad2deg(test[:, 2])
     if window_mask is not None:
         df = df[np.asarray(window_mask)[ir, ik]].reset_index(drop=True)
     return df

@@ -58,6 +58,7 @@ def _raw(states, anchors):
         n_rejected=i,
         dropped=i,
         llr=z,
+        test_anchor=jnp.zeros((k, 3)),
     )
 
 

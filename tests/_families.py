@@ -10,6 +10,7 @@ import shapely
 from shapely.geometry import MultiLineString
 
 from mfcl_jax.sim.families import FAMILIES, make_scene
+from mfcl_jax.sim.families.walks import dense
 from mfcl_jax.sim.trajectory import sample_path
 
 SEEDS = range(5)
@@ -21,18 +22,9 @@ def all_scenes():
     return {(f, s): make_scene(f, s) for f in FAMILIES for s in SEEDS}
 
 
-def _dense(wp, step=0.05):
-    wp = np.asarray(wp, float)
-    out = [wp[:1]]
-    for a, b in zip(wp[:-1], wp[1:], strict=True):
-        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
-        out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
-    return np.concatenate(out)
-
-
 def _driven(wp):
     """Points along the waypoint polyline and along the smoothed path the simulator drives."""
-    return np.concatenate([_dense(wp), sample_path(wp).poses[:, :2]])
+    return np.concatenate([dense(wp), sample_path(wp).poses[:, :2]])
 
 
 def _min_dist(points, segments) -> float:

@@ -70,6 +70,29 @@ def test_rasters():
     assert r.adjacency.tolist() == [[True, True], [True, True]]
 
 
+@pytest.mark.parametrize("thickness", [0.1, 0.04])
+def test_thin_wall_on_cell_borders_is_not_lost(thickness):
+    # A 0.10 m wall whose faces sit on cell-centre rows holds no cell centre (and a 0.04 m one
+    # may hold none): the rasters must still carry it along its whole length, as segment and
+    # as polygon (the walls a plan of rooms only draws are 0.10 m thick).
+    for kw in (dict(walls=np.array([[[0, 0], [10, 0]], [[0, 0], [0, 8]], [[10, 0], [10, 8]],
+                                    [[0, 8], [10, 8]], [[5.05, 0], [5.05, 8]]], float),
+                    thickness=thickness),
+               dict(walls=np.array([[[0, 0], [10, 0]], [[0, 0], [0, 8]], [[10, 0], [10, 8]],
+                                    [[0, 8], [10, 8]]], float), thickness=0.3,
+                    wall_polygons=(box(5.05 - thickness / 2, 0, 5.05 + thickness / 2, 8),))):
+        fp = Floorplan(rooms=(Room("a", box(0.2, 0.2, 9.8, 7.8)),), name="thin", **kw)
+        r = fp.rasterize(res=0.1)
+        ys = r.origin[1] + r.res * (np.arange(r.shape[0]) + 0.5)
+        rows = (ys > 0.3) & (ys < 7.7)
+        xs = r.origin[0] + r.res * (np.arange(r.shape[1]) + 0.5)
+        near = np.abs(xs - 5.05) < 0.1
+        assert np.asarray(r.wall)[rows][:, near].any(axis=1).all()
+        assert (np.asarray(r.dist)[rows][:, near].min(axis=1) == 0).all()
+        away = (np.abs(xs - 5.05) > 0.2) & (xs > 1) & (xs < 9)
+        assert not np.asarray(r.wall)[rows][:, away].any()  # and no thicker
+
+
 def test_adjacency_from_doors_and_open_passages():
     assert two_rooms().adjacency.tolist() == [[True, True], [True, True]]
     # without the door feature, the 1 m gap in the partition is still an open passage

@@ -73,23 +73,21 @@ def test_rasters():
 @pytest.mark.parametrize("thickness", [0.1, 0.04])
 def test_thin_wall_on_cell_borders_is_not_lost(thickness):
     # A 0.10 m wall whose faces sit on cell-centre rows holds no cell centre (and a 0.04 m one
-    # may hold none): the rasters must still carry it along its whole length, as segment and
-    # as polygon (the walls a plan of rooms only draws are 0.10 m thick).
+    # may hold none): the rasters must still carry it along its whole length (the walls a plan
+    # of rooms only draws are 0.10 m thick).
     outer = [[[0, 0], [10, 0]], [[0, 0], [0, 8]], [[10, 0], [10, 8]], [[0, 8], [10, 8]]]
-    as_segment = dict(walls=np.array([*outer, [[5.05, 0], [5.05, 8]]], float), thickness=thickness)
-    strip = box(5.05 - thickness / 2, 0, 5.05 + thickness / 2, 8)
-    as_polygon = dict(walls=np.array(outer, float), thickness=0.3, wall_polygons=(strip,))
-    for kw in (as_segment, as_polygon):
-        fp = Floorplan(rooms=(Room("a", box(0.2, 0.2, 9.8, 7.8)),), name="thin", **kw)
-        r = fp.rasterize(res=0.1)
-        ys = r.origin[1] + r.res * (np.arange(r.shape[0]) + 0.5)
-        rows = (ys > 0.3) & (ys < 7.7)
-        xs = r.origin[0] + r.res * (np.arange(r.shape[1]) + 0.5)
-        near = np.abs(xs - 5.05) < 0.1
-        assert np.asarray(r.wall)[rows][:, near].any(axis=1).all()
-        assert (np.asarray(r.dist)[rows][:, near].min(axis=1) == 0).all()
-        away = (np.abs(xs - 5.05) > 0.2) & (xs > 1) & (xs < 9)
-        assert not np.asarray(r.wall)[rows][:, away].any()  # and no thicker
+    walls = np.array([*outer, [[5.05, 0], [5.05, 8]]], float)
+    fp = Floorplan(walls=walls, thickness=np.r_[[0.3] * 4, thickness],
+                   rooms=(Room("a", box(0.2, 0.2, 9.8, 7.8)),), name="thin")  # fmt: skip
+    r = fp.rasterize(res=0.1)
+    ys = r.origin[1] + r.res * (np.arange(r.shape[0]) + 0.5)
+    rows = (ys > 0.3) & (ys < 7.7)
+    xs = r.origin[0] + r.res * (np.arange(r.shape[1]) + 0.5)
+    near = np.abs(xs - 5.05) < 0.1
+    assert np.asarray(r.wall)[rows][:, near].any(axis=1).all()
+    assert (np.asarray(r.dist)[rows][:, near].min(axis=1) == 0).all()
+    away = (np.abs(xs - 5.05) > 0.2) & (xs > 1) & (xs < 9)
+    assert not np.asarray(r.wall)[rows][:, away].any()  # and no thicker
 
 
 def test_adjacency_from_doors_and_open_passages():

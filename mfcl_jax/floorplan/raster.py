@@ -11,7 +11,7 @@ its rooms' free boundaries are 0.10 m thick, and where they sat on the grid's ce
 10-50 % of their length was lost (measured on the benchmark's buildings), which left one side
 of a ring corridor without its core wall and let a half-turn placement outscore the truth.
 A straight wall thicker than a cell holds a cell centre in every row (or column) it crosses,
-so the rule leaves such walls as they were (none of the benchmark's procedural plans changes).
+so the rule leaves such walls as they were (no nominal plan of the benchmark changes).
 """
 
 from __future__ import annotations
@@ -119,8 +119,9 @@ def _thin_walls(fp, origin, res: float, shape) -> np.ndarray:
     Wall polygons (IFC cuts, GeoJSON polygons, the occupied pixels of a ROS map) carry no centre
     line and keep the cell-centre rule alone: marking a thin polygon's outline instead, tried,
     dilated single occupied pixels of the real logs' maps into blobs of up to four cells and
-    moved 3 of the benchmark's 20 real-log runs (one commit lost, one false commit exposed:
-    ``docs/benchmark.md``), with no case where a polygon's lost cells had misled the layer."""
+    moved 3 of the benchmark's 20 real-log runs (one commit lost, one a window later, one false
+    commit exposed: ``docs/benchmark.md``), and no case showed a polygon's lost cells misleading
+    the layer."""
     thin = res * (1 + 1e-6)
     out = np.zeros(shape, bool)
     for (a, b), t in zip(np.asarray(fp.walls).reshape(-1, 2, 2), fp.thickness, strict=True):

@@ -98,3 +98,21 @@ def test_a_rooms_only_geojson_loads(tmp_path):
 def test_a_plan_without_rooms_or_walls_still_fails_clearly():
     with pytest.raises(Exception, match="no rooms"):
         Floorplan(walls=np.zeros((0, 2, 2)), thickness=0.1, rooms=[])
+
+
+def test_a_rooms_only_plan_keeps_the_wall_between_rooms_that_face_across_it():
+    # two offices 0.2 m apart (a partition's thickness) and a hall sharing an edge with A
+    a, b, hall = box(0, 0, 5, 4), box(5.2, 0, 10, 4), box(0, 4, 4.5, 8)
+    rooms = [Room("A", a), Room("B", b), Room("hall", hall)]
+    fp = Floorplan(walls=np.zeros((0, 2, 2)), thickness=0.1, rooms=rooms)
+    r = fp.rasterize()
+    ij = lambda x, y: (int((y - r.origin[1]) / r.res), int((x - r.origin[0]) / r.res))  # noqa: E731
+    wall = np.asarray(r.wall)
+    # the partition is a wall along its whole length, on both faces
+    assert all(wall[ij(5.0, y)] and wall[ij(5.2, y)] for y in np.arange(0.3, 3.8, 0.25))
+    # the shared edge y = 4 between A and the hall is open, the hall's far side is a wall
+    assert not any(wall[ij(x, 4.0)] for x in np.arange(0.3, 4.3, 0.25))
+    assert wall[ij(2.5, 8.0)]
+    # no door is marked: rooms facing across a wall may be joined anywhere on it, shared
+    # edges join, and B and the hall (0.7 m apart at their nearest) are not joined
+    assert fp.adjacency[0, 1] and fp.adjacency[0, 2] and not fp.adjacency[1, 2]

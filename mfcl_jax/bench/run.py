@@ -43,12 +43,12 @@ DEFAULT_SET = 1
 
 def _label_version() -> str:
     """Cached labels are reused only while the labelling code is unchanged."""
-    from mfcl_jax.floorplan import raster
+    from mfcl_jax.floorplan import passages, raster
     from mfcl_jax.frontend import path_fields, path_search, placements
     from mfcl_jax.score import identifiability
 
     h = hashlib.sha1()
-    for mod in (identifiability, path_search, path_fields, placements, raster):
+    for mod in (identifiability, passages, path_search, path_fields, placements, raster):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 

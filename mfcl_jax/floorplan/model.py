@@ -179,10 +179,13 @@ class Floorplan:
     @cached_property
     def adjacency(self) -> np.ndarray:
         """Room graph ``(R, R)`` bool (diagonal True): rooms joined by a door, or by an open
-        passage where the plan marks none (``passages.open_adjacency``)."""
+        passage where the plan marks none (``passages.open_adjacency``). A plan of rooms only
+        marks no door and its walls are derived, so rooms facing each other across one may be
+        joined anywhere on it: the walls are left out of the test."""
         n = len(self.rooms)
         polys = [r.polygon for r in self.rooms]
-        adj = np.eye(n, dtype=bool) | passages.open_adjacency(polys, self.wall_solid)
+        walls = Polygon() if self.walls_derived else self.wall_solid
+        adj = np.eye(n, dtype=bool) | passages.open_adjacency(polys, walls)
         for door in self.doors:
             if len(door.rooms) == 2:
                 a, b = (self.room_index(r) for r in door.rooms)

@@ -7,9 +7,14 @@ hold rooms only (IfcSpace-only models, room-polygon GeoJSON). Two rules read the
 * two rooms whose boundaries run within ``TOUCH`` of each other along a stretch of at least
   ``PASSAGE`` (wide enough for a person) that no wall covers are joined by an open passage
   (``open_adjacency``): a wall gap between two rooms is a passage;
-* a plan without walls gets the rooms' boundaries as walls, except where a boundary runs
-  within ``TOUCH`` of another room's (``walls_from_rooms``): there the rooms meet, and by the
-  first rule they are joined.
+* a plan without walls gets the rooms' boundaries as walls, except where a boundary lies on
+  another room's (within ``COINCIDE``: the two rooms share an edge, an opening with nothing
+  in it; ``walls_from_rooms``). Rooms that face each other across a gap (a wall's thickness,
+  up to ``TOUCH``) keep both boundaries as walls: the wall between them is in the building.
+  Such a plan marks no door, so rooms that face each other across a wall along at least
+  ``PASSAGE`` may be joined anywhere on it (``Floorplan.adjacency`` reads them with
+  ``open_adjacency`` and no walls); the gate then rules out only jumps between rooms that do
+  not face each other and walks through the outer wall.
 """
 
 from __future__ import annotations
@@ -19,10 +24,18 @@ import shapely
 from shapely.geometry import LineString, MultiLineString
 from shapely.ops import unary_union
 
-__all__ = ["TOUCH", "PASSAGE", "DERIVED_THICKNESS", "open_adjacency", "walls_from_rooms"]
+__all__ = [
+    "TOUCH",
+    "PASSAGE",
+    "COINCIDE",
+    "DERIVED_THICKNESS",
+    "open_adjacency",
+    "walls_from_rooms",
+]
 
 TOUCH = 0.45  # m: two rooms this close face each other across a wall or an opening
 PASSAGE = 0.6  # m: the narrowest opening a person walks through
+COINCIDE = 0.05  # m: two room boundaries this close are one shared edge (no wall between)
 DERIVED_THICKNESS = 0.10  # m: walls drawn along a rooms-only plan's free boundaries
 
 
@@ -64,15 +77,17 @@ def open_adjacency(polygons, wall_solid, touch: float = TOUCH, passage: float = 
     return adj
 
 
-def walls_from_rooms(polygons, touch: float = TOUCH) -> np.ndarray:
+def walls_from_rooms(polygons, coincide: float = COINCIDE) -> np.ndarray:
     """Wall centre lines ``(W, 2, 2)`` of a plan of rooms only: every room's boundary, except
-    where it runs within ``touch`` of another room (there the two rooms meet)."""
+    where it lies within ``coincide`` of another room's (a shared edge: there the two rooms
+    meet with nothing between them). Boundaries facing another room across a wall's gap are
+    walls."""
     segs = []
     for a, pa in enumerate(polygons):
-        others = [p for b, p in enumerate(polygons) if b != a and p.distance(pa) <= touch]
+        others = [p for b, p in enumerate(polygons) if b != a and p.distance(pa) <= coincide]
         free = pa.boundary
         if others:
-            free = free.difference(unary_union(others).buffer(touch))
+            free = free.difference(unary_union(others).buffer(coincide))
         for line in _lines(free):
             xy = np.asarray(line.coords)
             for p, q in zip(xy[:-1], xy[1:], strict=True):

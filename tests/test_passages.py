@@ -116,3 +116,37 @@ def test_a_rooms_only_plan_keeps_the_wall_between_rooms_that_face_across_it():
     # no door is marked: rooms facing across a wall may be joined anywhere on it, shared
     # edges join, and B and the hall (0.7 m apart at their nearest) are not joined
     assert fp.adjacency[0, 1] and fp.adjacency[0, 2] and not fp.adjacency[1, 2]
+
+
+def _rooms_only_geojson(path, x0: float) -> None:
+    """Two offices 0.2 m apart (a partition) starting at ``x0``, rooms only."""
+    feats = [
+        {"type": "Feature", "properties": {"kind": "room", "name": n},
+         "geometry": {"type": "Polygon", "coordinates": [list(map(list, p.exterior.coords))]}}
+        for n, p in (("A", box(x0, 0, x0 + 5, 4)), ("B", box(x0 + 5.2, 0, x0 + 10, 4)))
+    ]  # fmt: skip
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+
+
+def test_a_georeferenced_rooms_only_plan_keeps_its_rooms_joined_and_says_what_was_derived(
+    tmp_path,
+):
+    from mfcl_jax.floorplan import FloorplanWarning
+    from mfcl_jax.floorplan.geojson import save_geojson
+    from mfcl_jax.floorplan.load import load_floorplan
+
+    src = tmp_path / "rooms.geojson"
+    _rooms_only_geojson(src, 500_000.0)  # far from the origin: the loader moves it
+    with pytest.warns(FloorplanWarning, match="rooms and no walls"):
+        fp = load_floorplan(src)
+    assert fp.offset[0] != 0.0
+    # moved, its walls are still the rooms' own: the two offices may be joined across theirs
+    assert fp.walls_derived and fp.adjacency[0, 1]
+    # written and read back, it is the same plan of rooms only
+    out = save_geojson(fp, tmp_path / "again.geojson")
+    kinds = [f["properties"]["kind"] for f in json.loads(out.read_text())["features"]]
+    assert kinds == ["room", "room"]
+    with pytest.warns(FloorplanWarning):
+        again = load_floorplan(out)
+    assert again.walls_derived and again.adjacency[0, 1]
+    assert len(again.walls) == len(fp.walls)

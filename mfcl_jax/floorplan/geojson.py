@@ -253,10 +253,13 @@ def _poly_coords(poly: Polygon, off: np.ndarray) -> list:
 
 
 def floorplan_to_geojson(fp: Floorplan) -> dict:
-    """The GeoJSON FeatureCollection for a floor plan, in plan-frame coordinates."""
+    """The GeoJSON FeatureCollection for a floor plan, in plan-frame coordinates. A plan of
+    rooms only is written as it came, without the walls derived from its rooms (read back,
+    they are derived again; written out, they would read as a plan whose walls are given)."""
     off = np.asarray(fp.offset, np.float64)
     feats = []
-    for seg, t in zip(fp.walls, fp.thickness, strict=True):
+    walls = () if fp.walls_derived else zip(fp.walls, fp.thickness, strict=True)
+    for seg, t in walls:
         feats.append(
             {
                 "type": "Feature",

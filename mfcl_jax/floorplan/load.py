@@ -7,9 +7,10 @@ plan), moved next to it with the shift recorded in ``Floorplan.offset``
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
-from mfcl_jax.floorplan.model import Floorplan, FloorplanError
+from mfcl_jax.floorplan.model import Floorplan, FloorplanError, FloorplanWarning
 
 __all__ = ["load_floorplan", "floorplan_files", "FLOORPLAN_SUFFIXES"]
 
@@ -65,6 +66,15 @@ def load_floorplan(
         from mfcl_jax.floorplan.rosmap import load_rosmap
 
         fp = load_rosmap(path, free_thresh=free_thresh, occupied_thresh=occupied_thresh)
+    if fp.walls_derived:
+        warnings.warn(
+            f"{path}: the plan has rooms and no walls; {len(fp.walls)} wall segments were drawn "
+            "along the rooms' boundaries (edges two rooms share are left open) and, as it "
+            "marks no doors, rooms facing each other across a wall are taken as joined "
+            "anywhere on it",
+            FloorplanWarning,
+            stacklevel=2,
+        )
     if not local:
         return fp
     from mfcl_jax.floorplan.origin import local_origin

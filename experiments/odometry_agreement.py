@@ -24,10 +24,6 @@ FAMILIES = ("plain", "offices", "ring", "hall")
 WINDOWS, LENGTH_M = 6, 30.0
 
 
-def _wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
 def _recordings(cache: str):
     from mfcl_jax.sim import SimParams, families
     from mfcl_jax.sources import logs
@@ -47,13 +43,14 @@ def _recordings(cache: str):
 def steps(source: str, rec) -> pd.DataFrame:
     """One row per pair of consecutive windows of ``rec``."""
     from mfcl_jax import windows as W
+    from mfcl_jax.io.timesync import wrap_angle as wrap
 
     w = W.cut(rec.seq, W.WindowParams(d_s=6.0))
     truth = np.asarray(rec.truth.poses)[w.keyframes[w.bounds[:, 1]]]
-    d_lidar = _wrap(np.diff(w.X[:, 2]))
-    d_input = _wrap(np.diff(w.X_input[:, 2]))
-    d_truth = _wrap(np.diff(truth[:, 2]))
-    deg = lambda a, b: np.rad2deg(np.abs(_wrap(a - b)))  # noqa: E731
+    d_lidar = wrap(np.diff(w.X[:, 2]))
+    d_input = wrap(np.diff(w.X_input[:, 2]))
+    d_truth = wrap(np.diff(truth[:, 2]))
+    deg = lambda a, b: np.rad2deg(np.abs(wrap(a - b)))  # noqa: E731
     return pd.DataFrame({
         "source": source,
         "run": rec.name,

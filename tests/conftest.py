@@ -48,7 +48,7 @@ GROUPS = {
 WEIGHTS = {
     "decision": 125, "robot": 85, "benchmark": 58, "frontend": 48, "test_study": 45,
     "mcl": 35, "test_real_floorplans": 13, "families": 10, "test_sim": 8,
-    "test_identifiability": 8, "test_path_bound": 22,
+    "test_identifiability": 8, "test_path_bound": 18,
 }  # fmt: skip
 _GROUP_OF = {f: g for g, files in GROUPS.items() for f in files}
 

@@ -66,14 +66,14 @@ def test_the_bound_of_a_cell_is_never_below_a_placement_inside_it(distinct):
 
 
 def test_the_search_finds_the_congruent_copy_of_the_room_walked_in():
-    fp = row_of_rooms()  # four congruent rooms at PITCH, doors at the same place
+    fp = row_of_rooms(widths=(PITCH,) * 3)  # congruent rooms at PITCH, doors alike
     pts = np.asarray([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0]]) + [PITCH, 0.0]
     fields, bf, pe, x_now = _case(fp, pts, n_scans=6)
     a_star = np.zeros(3)
     L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
     r = pb.certify(pe, fields, bf, a_star, x_now, L0 - math.log(100.0))
     assert r.outcome == "competitor", r
-    # a whole room away (one of the other three rooms, or the room turned half a turn)
+    # a whole room away (one of the other two rooms, or the room turned half a turn)
     assert np.hypot(*(r.competitor[:2])) > 3.0 or abs(r.competitor[2]) > 3.0, r.competitor
     assert r.competitor_llr >= L0 - math.log(100.0)
 

@@ -347,6 +347,9 @@ def certify(pe: PathEvidence, fields: PlanFields, bf: BoundFields, a_star, x_now
     if tau <= l_min + 1e-6:
         return done("open", "tau at the least score", 0, 0)
     radius = float(np.max(np.hypot(*np.concatenate([pts_c[pw > 0], free_c[fw > 0]]).T)))
+    # in steps of 1.6 m (8 cells of the exhaustive level): paths of about the same extent
+    # share the exhaustive level's shapes, so one compilation serves them
+    radius = 1.6 * math.ceil(radius / 1.6 + 1e-9)
     a_star = np.asarray(a_star, np.float64)
     x_now = np.asarray(x_now, np.float64)
     ca, sa = math.cos(a_star[2]), math.sin(a_star[2])

@@ -28,8 +28,10 @@ from __future__ import annotations
 import math
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
+import jax
 import numpy as np
 import pandas as pd
 
@@ -68,10 +70,31 @@ def _recordings(tests: pd.DataFrame) -> dict:
     return {r.name: r for r in nominal_recordings(cfg) if r.name in names}
 
 
+@partial(jax.jit, static_argnames="n_img")
+def _search(ev, X, fields, n_img: int):
+    from mfcl_jax.decision import rivals
+
+    return rivals.search(*ev, X, fields, n_img, rivals.RivalParams(n_rivals=8, keep_ratio=0.0))
+
+
+@jax.jit
+def _polish(found, pe, fields):
+    from mfcl_jax.frontend import path_llr
+
+    return jax.vmap(lambda a: path_llr.refine(a, pe, fields))(found)
+
+
+@jax.jit
+def _polish_wide(found, pe, fields):
+    from mfcl_jax.frontend import path_llr
+
+    steps = ((0.3, 3.0), *path_llr.REFINE_STEPS)
+    return jax.vmap(lambda a: path_llr.refine(a, pe, fields, steps=steps))(found)
+
+
 def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     """The branch and bound at window ``k`` of ``rec`` for the committed ``anchor (3,)``
     (``^B T_L``)."""
-    import jax
     import jax.numpy as jnp
 
     from mfcl_jax import se2
@@ -88,8 +111,8 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     b = np.asarray(w.bounds)
     odo = np.asarray(w.odometry)[b[first, 0] : b[k - 1, 1] + 1]
     length = float(np.sum(np.hypot(*np.diff(odo[:, :2], axis=0).T)))
-    pe = path_llr.path_evidence(np.stack([e[0] for e in ev]), np.stack([e[1] for e in ev]),
-                                np.stack([e[2] for e in ev]), X, length)  # fmt: skip
+    ev_stack = tuple(np.stack([e[i] for e in ev]) for i in range(3))
+    pe = path_llr.path_evidence(*ev_stack, X, length)
     key = id(rec.floorplan)
     if key not in cache:
         fields = jax.tree.map(jnp.asarray, rivals.rival_fields(rec.floorplan))
@@ -102,6 +125,20 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     r = path_bound.certify(pe, fields, bf, a, X[-1], L - margin)
     out = dict(outcome=r.outcome, why=r.why, L_star=L, margin=margin, cells=r.cells,
                levels=r.levels, seconds=round(r.seconds, 2), metres=length)  # fmt: skip
+    # the lane's grid test on this evidence (its search's placements only; the lane also
+    # fits the newest window's registrations and the probe's aliases), polished as the lane
+    # polishes and with a wider first polish round (0.3 m, 3 deg)
+    found, ok = _search(ev_stack, X, fields, rivals.image_size([rec.floorplan]))
+    x_now = np.asarray(X[-1], np.float64)
+    for col, fit in (("llr_search", _polish), ("llr_search_wide", _polish_wide)):
+        A, La = fit(found, pe, fields)
+        A, La = np.asarray(A, np.float64), np.asarray(La, np.float64)
+        cn, an = se2.compose_host(A, x_now), se2.compose_host(a, x_now)
+        far = (np.hypot(*(cn - an)[:, :2].T) > 1.0) | (
+            np.abs(np.angle(np.exp(1j * (cn[:, 2] - an[2])))) > math.radians(5.0)
+        )
+        best = np.max(np.where(far & np.asarray(ok), La, -np.inf))
+        out[col] = L - best
     if r.competitor is not None:
         # where the competitor places the robot now, against A*
         x_now = np.asarray(X[-1], np.float64)

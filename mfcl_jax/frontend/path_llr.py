@@ -32,7 +32,7 @@ import jax.numpy as jnp
 from mfcl_jax import se2
 from mfcl_jax.frontend.path_fields import PlanFields, sample_field
 
-__all__ = ["LLRParams", "PathEvidence", "path_evidence", "log_likelihood", "refine"]
+__all__ = ["LLRParams", "PathEvidence", "path_evidence", "log_likelihood", "refine", "REFINE_STEPS"]
 
 
 @dataclass(frozen=True)
@@ -143,9 +143,14 @@ def _polish(a, pe, fields, p, step_xy, step_deg):
     return cand[i], sc[i]
 
 
-def refine(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRParams()):
-    """The best placement near ``a`` (three rounds of 27 poses: 12 cm / 1.2 deg, 4 cm /
-    0.4 deg, 1.5 cm / 0.15 deg) and its ``L``."""
-    a, _ = _polish(a, pe, fields, p, 0.12, 1.2)
-    a, _ = _polish(a, pe, fields, p, 0.04, 0.4)
-    return _polish(a, pe, fields, p, 0.015, 0.15)
+# the polish's rounds of 27 poses: (m, deg) steps
+REFINE_STEPS = ((0.12, 1.2), (0.04, 0.4), (0.015, 0.15))
+
+
+def refine(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRParams(),
+           steps=REFINE_STEPS):  # fmt: skip
+    """The best placement near ``a`` (rounds of 27 poses, ``steps``: by default 12 cm /
+    1.2 deg, 4 cm / 0.4 deg, 1.5 cm / 0.15 deg) and its ``L``."""
+    for step_xy, step_deg in steps[:-1]:
+        a, _ = _polish(a, pe, fields, p, step_xy, step_deg)
+    return _polish(a, pe, fields, p, *steps[-1])

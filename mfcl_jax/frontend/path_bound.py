@@ -61,7 +61,7 @@ import numpy as np
 from scipy import ndimage
 
 from mfcl_jax.frontend import path_llr
-from mfcl_jax.frontend.path_fields import PlanFields
+from mfcl_jax.frontend.path_fields import PlanFields, sample_field
 from mfcl_jax.frontend.path_llr import LLRParams, PathEvidence
 
 __all__ = ["BoundParams", "BoundFields", "BoundResult", "bound_fields", "cell_bounds", "certify"]
@@ -110,9 +110,8 @@ def bound_fields(fields: PlanFields) -> BoundFields:
     The wall nodes are those at distance 0; the distance is measured again over the whole
     (bucket-padded) grid as the raster measures it (``floorplan.raster``), so it equals the
     field ``L`` reads on the plan's raster, stays below it on the padding (10 m there) and is
-    1-Lipschitz between any two nodes. ``cap`` stays a node's
-    distance below the nearest wall-distance on the grid's border, so the capped field is
-    ``cap`` everywhere off the grid too."""
+    1-Lipschitz between any two nodes. ``cap`` stays a node's distance below the least
+    wall-distance on the grid's border, so the capped field is ``cap`` off the grid too."""
     dist = np.asarray(fields.dist, np.float64)
     res = float(fields.res)
     wall = dist <= 1e-6
@@ -134,23 +133,6 @@ def bound_fields(fields: PlanFields) -> BoundFields:
         res=res,
         cap=cap,
     )
-
-
-def _bilinear(field, origin, res, xy, fill):
-    u = (xy[..., 0] - origin[0]) / res - 0.5
-    v = (xy[..., 1] - origin[1]) / res - 0.5
-    h, w = field.shape
-    u0, v0 = jnp.floor(u), jnp.floor(v)
-    fu, fv = u - u0, v - v0
-    u0, v0 = u0.astype(jnp.int32), v0.astype(jnp.int32)
-    flat = field.reshape(-1)
-
-    def at(iv, iu):
-        ok = (iu >= 0) & (iu < w) & (iv >= 0) & (iv < h)
-        return jnp.where(ok, flat[jnp.where(ok, iv * w + iu, 0)], fill)
-
-    return (at(v0, u0) * (1 - fu) * (1 - fv) + at(v0, u0 + 1) * fu * (1 - fv)
-            + at(v0 + 1, u0) * (1 - fu) * fv + at(v0 + 1, u0 + 1) * fu * fv)  # fmt: skip
 
 
 def _nearest(field, origin, res, xy):
@@ -179,7 +161,7 @@ def cell_bounds(cells, h, delta, pq, pw, pr, fq, fw, fr, capped, to_free, bad, o
 
     rho = SQ2 * h + (jnp.hypot(pq[:, 0], pq[:, 1]) + pr) * delta + pr + EPS
     xp = place(pq)
-    lb_bil = _bilinear(capped, origin, res, xp, cap) - SQ2 * rho
+    lb_bil = sample_field(capped, origin, res, xp, cap) - SQ2 * rho
     dv, dn = _nearest(capped, origin, res, xp)
     lb = jnp.maximum(jnp.maximum(lb_bil, dv - rho - SQ2 * res - dn), 0.0)
     f = jnp.log((1.0 - z_rand) * jnp.exp(-lb * lb / (2.0 * sigma**2)) + z_rand)
@@ -188,7 +170,7 @@ def cell_bounds(cells, h, delta, pq, pw, pr, fq, fw, fr, capped, to_free, bad, o
     xf = place(fq)
     ev, en = _nearest(to_free, origin, res, xf)
     # the obstacle field's bilinear reading moves by at most sqrt(2) / res per metre
-    b = jnp.maximum(_bilinear(bad, origin, res, xf, 1.0) - SQ2 * rho_f / res, 0.0)
+    b = jnp.maximum(sample_field(bad, origin, res, xf, 1.0) - SQ2 * rho_f / res, 0.0)
     b = jnp.where(ev - en > rho_f + SQ2 * res, 1.0, jnp.minimum(b, 1.0))
     return ub + jnp.sum(fw * jnp.log(1.0 - z_block * b), axis=1)
 

@@ -63,6 +63,7 @@ from scipy import ndimage
 from mfcl_jax.frontend import path_llr
 from mfcl_jax.frontend.path_fields import PlanFields, sample_field
 from mfcl_jax.frontend.path_llr import LLRParams, PathEvidence
+from mfcl_jax.frontend.path_search import fft_size
 
 __all__ = ["BoundParams", "BoundFields", "BoundResult", "bound_fields", "cell_bounds", "certify"]
 
@@ -78,6 +79,7 @@ class BoundParams:
     max_delta_deg: float = 1.0  # point by at most this much (and are at most 2 deg wide)
     keep_per_heading: int = 8192  # surviving translations one heading may hold; more: open
     fft_slack: float = 0.05  # the exhaustive level keeps cells within this of tau (float32)
+    cell_slack: float = 0.005  # later levels likewise (direct sums, smaller rounding)
     levels: int = 3  # halvings after the exhaustive level (0.2 m grid): 1.25 cm
     max_levels: int = 7  # more halvings while at most ``deep_cells`` cells are left
     deep_cells: int = 50_000
@@ -89,6 +91,8 @@ class BoundParams:
 
 
 DEFAULT_BOUND = BoundParams()
+# a cell's 8 children: offsets of their centres in units of their half-sizes (h, h, delta)
+_CHILDREN = np.asarray([[dx, dy, dt] for dx in (-1, 1) for dy in (-1, 1) for dt in (-1, 1)])
 DEFAULT_LLR = LLRParams()
 
 
@@ -209,12 +213,6 @@ def _voxels(q, w, side: float, n_min: int = 64):
     return out_q, out_w, np.float32(half)
 
 
-def _fft_size(n: int) -> int:
-    from mfcl_jax.frontend.path_search import fft_size
-
-    return fft_size(n)
-
-
 @partial(jax.jit, static_argnames=("n_img", "out_shape", "fft_shape", "keep"))
 def _exhaustive(thetas, qp, wp, bp, qf, wf, bf_, spectra, g, n_img: int, out_shape,
                 fft_shape, keep: int, tau):  # fmt: skip
@@ -283,7 +281,7 @@ def _level_a(pts_c, pw, free_c, fw, bf: BoundFields, radius, tau, p: BoundParams
     n_img = int(2 * math.ceil((radius + g) / g) + 1)
     ny, nx = E.shape
     out_shape = (ny - n_img + 1, nx - n_img + 1)
-    fft_shape = (_fft_size(ny), _fft_size(nx))
+    fft_shape = (fft_size(ny), fft_size(nx))
     spectra = jnp.fft.rfft2(jnp.asarray(fields4, jnp.float32), fft_shape)
     bp = (np.hypot(*pts_c.T) > radius / 2).astype(np.int32)
     bfree = (np.hypot(*free_c.T) > radius / 2).astype(np.int32)
@@ -384,34 +382,37 @@ def certify(pe: PathEvidence, fields: PlanFields, bf: BoundFields, a_star, x_now
     consts = (jnp.asarray(bf.capped), jnp.asarray(bf.to_free), jnp.asarray(bf.bad),
               jnp.asarray(bf.origin, f32), f32(bf.res), f32(bf.cap), f32(llr.sigma),
               f32(llr.z_rand), f32(llr.z_block))  # fmt: skip
-    off = np.asarray([[dx, dy, dt] for dx in (-1, 1) for dy in (-1, 1) for dt in (-1, 1)])
+
+    def bounds(cells, h, delta):
+        """``cell_bounds`` of any number of cells, in padded chunks of ``p.chunk``."""
+        side = h if h > 0.02 else 0.0  # the finest levels read every sample
+        pq, pwv, pr = _voxels(pts_c, pw, side)
+        fq, fwv, fr = _voxels(free_c, fw, side)
+        ub = np.empty(len(cells), np.float32)
+        for i in range(0, len(cells), p.chunk):
+            m = min(p.chunk, len(cells) - i)
+            blk = np.zeros((p.chunk, 3), np.float32)
+            blk[:m] = cells[i : i + m]
+            out = cell_bounds(blk, f32(h), f32(delta), pq, pwv, pr, fq, fwv, fr, *consts)
+            ub[i : i + m] = np.asarray(out)[:m]
+        return ub
+
+    cells = cells[~inside(cells, h, delta)]
+    if len(cells) == 0:
+        return done("certified", "", total, 1)
     level = 0
     for level in range(1, p.max_levels + 1):
         if level > p.levels and len(cells) > p.deep_cells:
             level -= 1
             break
-        cells = cells[~inside(cells, h, delta)]
-        if len(cells) == 0:
-            return done("certified", "", total, level)
         h, delta = h / 2, delta / 2
-        cells = (cells[:, None, :] + off[None] * np.asarray([h, h, delta])).reshape(-1, 3)
+        cells = (cells[:, None, :] + _CHILDREN * np.asarray([h, h, delta])).reshape(-1, 3)
         cells = cells[~inside(cells, h, delta)]
         if len(cells) > p.max_cells:
             return done("open", f"{len(cells)} cells at level {level}", total, level)
-        side = h if h > 0.02 else 0.0
-        pq, pwv, pr = _voxels(pts_c, pw, side)
-        fq, fwv, fr = _voxels(free_c, fw, side)
-        ub = np.empty(len(cells), np.float32)
-        n = p.chunk
-        for i in range(0, len(cells), n):
-            blk = np.zeros((n, 3), np.float32)
-            m = min(n, len(cells) - i)
-            blk[:m] = cells[i : i + m]
-            out = cell_bounds(blk, jnp.float32(h), jnp.float32(delta), pq, pwv, pr, fq, fwv,
-                              fr, *consts)  # fmt: skip
-            ub[i : i + m] = np.asarray(out)[:m]
+        ub = bounds(cells, h, delta)
         total += len(cells)
-        keep = ub >= tau - p.fft_slack * 0.1
+        keep = ub >= tau - p.cell_slack
         cells, ub = cells[keep], ub[keep]
         if len(cells) == 0:
             return done("certified", "", total, level + 1)

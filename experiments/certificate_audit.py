@@ -79,17 +79,10 @@ def _search(ev, X, fields, n_img: int):
 
 @jax.jit
 def _polish(found, pe, fields):
+    from mfcl_jax.decision.uniqueness import DEFAULT_UNIQUE as U
     from mfcl_jax.frontend import path_llr
 
-    return jax.vmap(lambda a: path_llr.refine(a, pe, fields))(found)
-
-
-@jax.jit
-def _polish_wide(found, pe, fields):
-    from mfcl_jax.frontend import path_llr
-
-    steps = ((0.3, 3.0), *path_llr.REFINE_STEPS)
-    return jax.vmap(lambda a: path_llr.refine(a, pe, fields, steps=steps))(found)
+    return jax.vmap(lambda a: path_llr.refine(a, pe, fields, U.llr, U.polish))(found)
 
 
 def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
@@ -126,19 +119,16 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     out = dict(outcome=r.outcome, why=r.why, L_star=L, margin=margin, cells=r.cells,
                levels=r.levels, seconds=round(r.seconds, 2), metres=length)  # fmt: skip
     # the lane's grid test on this evidence (its search's placements only; the lane also
-    # fits the newest window's registrations and the probe's aliases), polished as the lane
-    # polishes and with a wider first polish round (0.3 m, 3 deg)
+    # fits the newest window's registrations and the probe's aliases), fitted as the lane fits
     found, ok = _search(ev_stack, X, fields, rivals.image_size([rec.floorplan]))
+    A, La = _polish(found, pe, fields)
+    A, La = np.asarray(A, np.float64), np.asarray(La, np.float64)
     x_now = np.asarray(X[-1], np.float64)
-    for col, fit in (("llr_search", _polish), ("llr_search_wide", _polish_wide)):
-        A, La = fit(found, pe, fields)
-        A, La = np.asarray(A, np.float64), np.asarray(La, np.float64)
-        cn, an = se2.compose_host(A, x_now), se2.compose_host(a, x_now)
-        far = (np.hypot(*(cn - an)[:, :2].T) > 1.0) | (
-            np.abs(np.angle(np.exp(1j * (cn[:, 2] - an[2])))) > math.radians(5.0)
-        )
-        best = np.max(np.where(far & np.asarray(ok), La, -np.inf))
-        out[col] = L - best
+    cn, an = se2.compose_host(A, x_now), se2.compose_host(a, x_now)
+    far = (np.hypot(*(cn - an)[:, :2].T) > 1.0) | (
+        np.abs(np.angle(np.exp(1j * (cn[:, 2] - an[2])))) > math.radians(5.0)
+    )
+    out["llr_search"] = L - np.max(np.where(far & np.asarray(ok), La, -np.inf))
     if r.competitor is not None:
         # where the competitor places the robot now, against A*
         x_now = np.asarray(X[-1], np.float64)

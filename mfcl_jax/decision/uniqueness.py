@@ -8,7 +8,8 @@ explains what I have seen"; this module checks that statement, with a stated err
    (``frontend.path_search``: exhaustive over headings at 5 deg and translations on a coarse
    cell of 0.4-0.5 m, then polished), the newest window's best registrations, the consensus
    winner ``T*`` and the probe's aliases of it (the building's known symmetries);
-2. each is fitted to the path under the observation model (``path_llr.refine``), and the best
+2. each is fitted to the path under the observation model (``path_llr.refine``, a first
+   round of 0.3 m / 3 deg steps, then the fit's own rounds to 1.5 cm / 0.15 deg), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
    5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``;
 3. the statement holds when ``llr >= log(1 / alpha)`` (a lane's knob, ``lanes``): under the
@@ -21,7 +22,8 @@ newest window's champion, and not disagree with a consensus winner of two or mor
 
 The search covers every placement on its grid, then the peaks are polished, so a competitor
 narrower than the grid's cell (0.4-0.5 m, 5 deg) can be missed: the certificate is
-exhaustive at that resolution, not a bound over the continuum.
+exhaustive at that resolution, not a bound over the continuum (``frontend.path_bound``
+bounds the continuum, as an audit: ``experiments.certificate_audit``).
 """
 
 from __future__ import annotations
@@ -50,6 +52,11 @@ class UniqueParams:
     n_newest: int = 3  # best registrations of the newest window
     max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
     llr: LLRParams = LLRParams()
+    # the fit's rounds of 27 poses, (m, deg): a first round of 0.3 m / 3 deg reaches a peak
+    # up to about 0.6 m and 6 deg from a candidate, where a competitor narrower than the
+    # search's cell can sit (the branch and bound's audit found three such; 27 more
+    # evaluations of L per candidate)
+    polish: tuple = ((0.3, 3.0), *path_llr.REFINE_STEPS)
 
 
 DEFAULT_UNIQUE = UniqueParams()
@@ -99,7 +106,7 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     cand = jnp.concatenate([found, Hk[top], t_star[None], aliases]).astype(jnp.float32)
     ok = jnp.concatenate([found_ok, mk[top], jnp.ones(1, bool), aliases_ok])
     pe = path_llr.path_evidence(h.ev_points, h.ev_origins, h.ev_mask, h.X, path.dist, u.llr)
-    A, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr))(cand)
+    A, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish))(cand)
     L = jnp.where(ok, L, -jnp.inf)
     i = jnp.argmax(L)
     best = A[i]

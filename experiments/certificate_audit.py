@@ -73,8 +73,10 @@ def _recordings(tests: pd.DataFrame) -> dict:
 @partial(jax.jit, static_argnames="n_img")
 def _search(ev, X, fields, n_img: int):
     from mfcl_jax.decision import rivals
+    from mfcl_jax.decision.uniqueness import DEFAULT_UNIQUE as U
 
-    return rivals.search(*ev, X, fields, n_img, rivals.RivalParams(n_rivals=8, keep_ratio=0.0))
+    rp = rivals.RivalParams(n_rivals=U.n_search, keep_ratio=0.0)
+    return rivals.search(*ev, X, fields, n_img, rp)
 
 
 @jax.jit
@@ -131,7 +133,6 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     out["llr_search"] = L - np.max(np.where(far & np.asarray(ok), La, -np.inf))
     if r.competitor is not None:
         # where the competitor places the robot now, against A*
-        x_now = np.asarray(X[-1], np.float64)
         cn, an = se2.compose_host(r.competitor, x_now), se2.compose_host(a, x_now)
         dyaw = abs(math.degrees(math.remainder(cn[2] - an[2], 2 * math.pi)))
         out.update(llr_found=L - r.competitor_llr, comp_dxy=float(np.hypot(*(cn - an)[:2])),

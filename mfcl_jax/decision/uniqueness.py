@@ -48,7 +48,9 @@ class UniqueParams:
 
     near_xy: float = 1.0  # m: placements this close to A* are the same answer
     near_deg: float = 5.0
-    n_search: int = 8  # placements kept from the global search
+    # placements kept from the global search: all it returns (path_search's n_out); ranked by
+    # its own coarse score, a competitor can sit below 8 (ring-1/B/s1's half-turn was 12th)
+    n_search: int = 12
     n_newest: int = 3  # best registrations of the newest window
     max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
     llr: LLRParams = LLRParams()

@@ -16,13 +16,18 @@ def main(argv=None) -> int:
         return 2
     root = Path(argv[0])
     out = Path(argv[1]) if len(argv) > 1 else Path("results/benchmark")
+    from mfcl_jax.bench.config import BenchmarkError
     from mfcl_jax.bench.main import merge
 
     jobs = sorted(p.parent for p in root.glob("*/runs.csv"))
     if not jobs:
         print(f"merge_benchmark: no job outputs (*/runs.csv) under {root}", file=sys.stderr)
         return 1
-    tabs = merge(jobs, out)
+    try:
+        tabs = merge(jobs, out)
+    except BenchmarkError as e:
+        print(e, file=sys.stderr)
+        return 1
     print(f"merged {len(jobs)} jobs into {len(tabs)} tables in {out}/")
     return 0
 

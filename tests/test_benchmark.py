@@ -180,3 +180,28 @@ def test_merge_of_jobs_gives_the_same_tables(small, tmp_path):
         a = tables[name].reset_index(drop=True)
         b = merged[name].reset_index(drop=True)
         pd.testing.assert_frame_equal(a, b, check_dtype=False, check_exact=False, rtol=1e-6)
+
+
+def test_merge_refuses_jobs_that_overlap_or_ran_at_different_window_lengths(small, tmp_path):
+    """Two jobs holding the same run (as jobs split by fault axis would: each repeats the
+    nominal runs) or runs of different ``d_s`` are not one benchmark: ``merge`` names the run
+    or the jobs and writes nothing; ``runs.csv`` from before the ``d_s`` column merges."""
+    root, _, _ = small
+    runs = read_runs([root / "one"])
+    assert set(runs["d_s"]) == {6.0}
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        runs.to_csv(tmp_path / name / "runs.csv", index=False)
+    with pytest.raises(
+        BenchmarkError, match=r"run 'bays-0/A/s0' \(nominal, policy .*more than one job"
+    ):
+        merge([tmp_path / "a", tmp_path / "b"], tmp_path / "out", SMALL["policies"])
+    nominal, faulty = runs[runs["fault"] == ""], runs[runs["fault"] != ""]
+    nominal.to_csv(tmp_path / "a" / "runs.csv", index=False)
+    faulty.assign(d_s=7.0).to_csv(tmp_path / "b" / "runs.csv", index=False)
+    with pytest.raises(BenchmarkError, match="different window lengths.*d_s=6.*d_s=7"):
+        merge([tmp_path / "a", tmp_path / "b"], tmp_path / "out", SMALL["policies"])
+    assert not (tmp_path / "out").exists()
+    faulty.drop(columns="d_s").to_csv(tmp_path / "b" / "runs.csv", index=False)
+    merged = merge([tmp_path / "a", tmp_path / "b"], tmp_path / "out", SMALL["policies"])
+    assert len(merged["families"])

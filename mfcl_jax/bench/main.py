@@ -52,7 +52,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     runs = pd.concat([runs, nominal_level_rows(runs, cfg)], ignore_index=True)
     _write_windows(scored, col.labels, Path(cfg.out))
     keep = set(cfg.policies)
-    runs = runs[runs["policy"].isin(keep)]
+    runs = runs[runs["policy"].isin(keep)].assign(d_s=float(cfg.d_s))
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / "runs.csv", runs.to_csv(index=False, float_format="%.6g"))
@@ -184,13 +184,47 @@ def read_runs(job_dirs) -> pd.DataFrame:
         f = Path(d) / "runs.csv"
         if not f.is_file():
             raise FileNotFoundError(f"merge: {f} not found (did the job finish?)")
-        parts.append(_read_table(f))
-    runs = pd.concat(parts, ignore_index=True)
+        parts.append(_read_table(f).assign(_job=str(d)))
+    _check_one_benchmark(parts)
+    runs = pd.concat(parts, ignore_index=True).drop(columns="_job")
     runs["fault"] = runs["fault"].fillna("")
     runs["level"] = runs["level"].fillna("")
     for c in ("committed", "any_false", "correct_run", "identifiable"):
         runs[c] = runs[c].astype(bool)
     return runs
+
+
+def _check_one_benchmark(parts) -> None:
+    """Jobs merge into one table only if they are parts of one benchmark: one window length
+    ``d_s`` (``runs.csv`` written before the column existed is not checked) and no run (name,
+    fault, level, policy, threshold set) in two jobs (jobs split by fault axis all repeat the
+    nominal runs); otherwise a ``BenchmarkError`` naming the jobs."""
+    from mfcl_jax.bench.config import BenchmarkError
+
+    d_s = {}
+    for p in parts:
+        for v in p["d_s"].dropna().unique() if "d_s" in p else ():
+            d_s.setdefault(float(v), p["_job"].iat[0])
+    if len(d_s) > 1:
+        said = "; ".join(f"{job}: d_s={v:g}" for v, job in sorted(d_s.items()))
+        raise BenchmarkError(
+            f"merge: the jobs ran at different window lengths ({said}); a table over runs of "
+            "different d_s mixes two benchmarks: merge the jobs of one d_s at a time"
+        )
+    key = ["name", "fault", "level", "policy", "set"]
+    rows = pd.concat([p[[*key, "_job"]] for p in parts], ignore_index=True)
+    rows = rows.fillna({"fault": "", "level": ""})
+    twice = rows[rows.duplicated(key, keep=False)]
+    if len(twice):
+        first = twice.iloc[0]
+        jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
+        fault = f"fault {first['fault']} {first['level']}" if first["fault"] else "nominal"
+        raise BenchmarkError(
+            f"merge: run {first['name']!r} ({fault}, policy {first['policy']}, set "
+            f"{first['set']}) is in more than one job ({', '.join(jobs)}): the jobs overlap "
+            "(split a multirun by families, not by fault axes: every axis repeats the nominal "
+            "runs)"
+        )
 
 
 def merge(job_dirs, out, policies=None) -> dict:

@@ -71,6 +71,38 @@ def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors(
     assert t["wrong"].tolist() == [1, 0, 0, 0, 0, 0, 0, 0]
 
 
+def test_fault_level_calibration_counts_each_level_past_each_lanes_threshold():
+    """Per (axis, level), nominal first and every fault row last: the judged windows and, per
+    lane threshold log(1/alpha), those at or above it and the wrong ones among them."""
+    from mfcl_jax.bench.calibration import fault_level_calibration
+
+    lane = "ours_unique_a6"
+    rows = [  # policy, fault, level, llr, test_correct
+        (lane, None, None, 5.0, True), (lane, None, None, 10.0, False),
+        (lane, "drift", "0.01", 4.0, False), (lane, "drift", "0.01", 7.0, True),
+        (lane, "drift", "0.02", 14.0, False), (lane, "drift", "0.02", -np.inf, False),
+        (lane, "clutter", "0.3", np.nan, False), ("ours", "drift", "0.02", 20.0, False),
+        (lane, "drift", "0.02", 3.0, None),
+    ]  # fmt: skip
+    w = pd.DataFrame(rows, columns=["policy", "fault", "level", "llr", "test_correct"])
+    t = fault_level_calibration(w).set_index(["fault", "level"])
+    assert list(t.index) == [("nominal", ""), ("drift", "0.01"), ("drift", "0.02"),
+                             ("all fault rows", "")]  # fmt: skip
+    assert t.loc[("nominal", ""), ["windows", "wrong"]].tolist() == [2, 1]
+    assert t.loc[
+        ("nominal", ""), ["windows_a2", "wrong_a2", "windows_a6", "wrong_a6"]
+    ].tolist() == [2, 1, 0, 0]  # 10 nats: past 1e-4 (9.21), short of 1e-6 (13.8)
+    assert t.loc[("nominal", ""), ["windows_a4", "wrong_a4"]].tolist() == [1, 1]
+    assert t.loc[("drift", "0.01"), ["windows", "wrong", "windows_a2", "wrong_a2"]].tolist() == [
+        2,
+        1,
+        1,
+        0,
+    ]
+    assert t.loc[("drift", "0.02"), ["windows", "windows_a6", "wrong_a6"]].tolist() == [1, 1, 1]
+    assert t.loc[("all fault rows", ""), ["windows", "wrong", "wrong_a2"]].tolist() == [3, 2, 1]
+
+
 def test_score_rows_judge_the_uniqueness_tests_placement_by_the_same_line():
     """``test_correct``: the uniqueness test's placement (``test_x, test_y, test_yaw_deg``)
     against the truth by the 1 m / 5 deg line of ``correct``; missing where it did not run."""

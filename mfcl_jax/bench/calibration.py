@@ -20,10 +20,20 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["EDGES", "ratio_calibration"]
+__all__ = ["EDGES", "LANE_ALPHAS", "ratio_calibration", "fault_level_calibration"]
 
 # bin edges: 1, 2, 3 nats, then the thresholds of the lanes (alpha 1e-2, 1e-3, 1e-4, 1e-6)
 EDGES = (0.0, 1.0, 2.0, 3.0, math.log(1e2), math.log(1e3), math.log(1e4), math.log(1e6), math.inf)
+# the uniqueness lanes' error rates, by the suffix of their column in ``fault_level_calibration``
+LANE_ALPHAS = {"a2": 1e-2, "a3": 1e-3, "a4": 1e-4, "a6": 1e-6}
+
+
+def _tested(windows: pd.DataFrame, policy: str):
+    """The windows where ``policy``'s test ran unvetoed and was judged, and which were wrong."""
+    judged = "test_correct" if "test_correct" in windows else "correct"
+    w = windows[(windows["policy"] == policy) & windows["llr"].notna()]
+    w = w[(w["llr"] > -np.inf) & w[judged].notna()]
+    return w, ~w[judged].astype(bool)
 
 
 def ratio_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> pd.DataFrame:
@@ -41,11 +51,8 @@ def ratio_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> 
         unvetoed and judged, and of them the anchor past the false-commit line),
         ``fault_windows`` and ``fault_wrong`` (the same over the fault rows).
     """
-    judged = "test_correct" if "test_correct" in windows else "correct"
-    w = windows[(windows["policy"] == policy) & windows["llr"].notna()]
-    w = w[(w["llr"] > -np.inf) & w[judged].notna()]
+    w, wrong = _tested(windows, policy)
     fault = w["fault"].fillna("").astype(str) != ""
-    wrong = ~w[judged].astype(bool)
     rows = []
     for lo, hi in zip(EDGES[:-1], EDGES[1:], strict=True):
         b = (w["llr"] >= lo) & (w["llr"] < hi) if hi < math.inf else w["llr"] >= lo
@@ -54,4 +61,44 @@ def ratio_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> 
             windows=int((b & ~fault).sum()), wrong=int((b & ~fault & wrong).sum()),
             fault_windows=int((b & fault).sum()), fault_wrong=int((b & fault & wrong).sum()),
         ))  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def fault_level_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6") -> pd.DataFrame:
+    """The bound checked at every level of every fault axis: per (axis, level), the windows
+    where the test ran unvetoed and was judged, and for each lane's threshold
+    ``log(1 / alpha)`` the windows at or above it and how many of those had a wrong ``A*``.
+
+    A wrong window at or above a lane's threshold is a false commit that lane made or would
+    have made (the lane commits at the first such window of a run; later windows of the run
+    count too). Windows of one run are not independent: the counts say where the bound was
+    broken, not a rate to compare with ``alpha`` digit by digit.
+
+    Args:
+        windows: the benchmark's per-window table (``fault, level, policy, llr`` and
+            ``test_correct``, or ``correct`` in older tables).
+        policy: the lane read (see ``ratio_calibration``).
+
+    Returns:
+        One row per ``(fault, level)``, the nominal runs first (``fault = "nominal"``), then
+        every fault level in axis order, then ``all fault rows``: ``windows``, ``wrong`` (any
+        ratio) and ``windows_<a>``, ``wrong_<a>`` for each lane of ``LANE_ALPHAS``.
+    """
+    w, wrong = _tested(windows, policy)
+    fault = w["fault"].fillna("").astype(str)
+    level = w["level"].fillna("").astype(str) if "level" in w else pd.Series("", index=w.index)
+
+    def row(name, lev, sel):
+        out = dict(fault=name, level=lev, windows=int(sel.sum()), wrong=int((sel & wrong).sum()))
+        for a, alpha in LANE_ALPHAS.items():
+            past = sel & (w["llr"] >= math.log(1 / alpha))
+            out[f"windows_{a}"] = int(past.sum())
+            out[f"wrong_{a}"] = int((past & wrong).sum())
+        return out
+
+    rows = [row("nominal", "", fault == "")]
+    for name, lev in dict.fromkeys(zip(fault[fault != ""], level[fault != ""], strict=True)):
+        rows.append(row(name, lev, (fault == name) & (level == lev)))
+    if (fault != "").any():
+        rows.append(row("all fault rows", "", fault != ""))
     return pd.DataFrame(rows)

@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from mfcl_jax.bench import figures, report, suite
-from mfcl_jax.bench.calibration import ratio_calibration
+from mfcl_jax.bench.calibration import fault_level_calibration, ratio_calibration
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, validate
 from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.io.atomic import atomic_write
@@ -121,7 +121,8 @@ def _read_table(f: Path) -> pd.DataFrame:
 
 def write_margins(out) -> pd.DataFrame:
     """``margins.csv/.md`` (``report.commit_margins``) and, where the uniqueness lanes ran,
-    ``ratio_calibration.csv/.md`` (``calibration.ratio_calibration``) from the folder's
+    ``ratio_calibration.csv/.md`` and ``ratio_calibration_faults.csv/.md``
+    (``calibration.ratio_calibration``, ``calibration.fault_level_calibration``) from the folder's
     ``windows.csv.gz``; returns the margins."""
     out = Path(out)
     f = out / "windows.csv.gz"
@@ -132,6 +133,7 @@ def write_margins(out) -> pd.DataFrame:
     write_table(tab, out, "margins")
     if "llr" in windows and (windows["policy"] == "ours_unique_a6").any():
         write_table(ratio_calibration(windows), out, "ratio_calibration")
+        write_table(fault_level_calibration(windows), out, "ratio_calibration_faults")
     return tab
 
 

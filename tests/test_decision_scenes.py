@@ -62,10 +62,11 @@ def walk(points, step=0.25):
 
 
 def to_odom(traj_b, anchor):
-    """Trajectory in B -> odometry frame L given the hidden anchor ^B T_L."""
+    """Trajectory in B -> odometry frame L given the hidden anchor ^B T_L (on the host: the
+    jnp twin compiled each operation anew for every trajectory length)."""
     from mfcl_jax import se2
 
-    return np.asarray(se2.compose(se2.inverse(np.asarray(anchor)), traj_b))
+    return se2.compose_host(se2.inverse_host(anchor), traj_b)
 
 
 def evidence_at(fp, poses):

@@ -64,3 +64,38 @@ def test_benchmark_script_imports_resolve(path):
         if (msg := _problem(module, name)) is not None
     }
     assert not problems, "\n".join(problems)
+
+
+def test_suite_report_charges_compilation_to_files_and_names_the_eager_operations(tmp_path):
+    """``benchmarks/suite.py`` reads the listener's per-worker files: seconds per test file
+    summed over both workers, XLA seconds per program, and the eager single operations (a
+    one-operation program under 0.2 s a compilation) counted apart from the real programs."""
+    import json
+
+    from benchmarks import suite
+
+    def worker(name, tests, programs):
+        (tmp_path / f"{name}.json").write_text(
+            json.dumps({"worker": name, "tests": tests, "programs": programs})
+        )
+
+    a, b = "tests/test_a.py::t1", "tests/test_b.py::t2"
+    worker("gw0", {a: {"wall_s": 10.0, "compile_s": 6.0, "trace_s": 1.0, "compile_n": 3}},
+           [{"test": a, "program": "jit(scan_runs)", "seconds": 5.5, "n": 1},
+            {"test": a, "program": "jit(add)", "seconds": 0.3, "n": 2},
+            {"test": a, "program": "jit(dot)", "seconds": 0.9, "n": 1}])  # fmt: skip
+    worker("gw1", {b: {"wall_s": 4.0, "compile_s": 1.0, "compile_n": 1},
+                   "tests/test_a.py::t3": {"wall_s": 2.0}},
+           [{"test": b, "program": "jit(add)", "seconds": 0.15, "n": 1}])  # fmt: skip
+    worker("main", {a: {"wall_s": 99.0}}, [])  # the xdist controller's copy: not counted
+    tests, progs = suite._frames(tmp_path)
+    per_file, per_prog, md = suite.report(tests, progs, wall_s=12.0, stamp="now")
+    assert per_file.loc["test_a.py", "wall_s"] == 12.0 and per_file.index[0] == "test_a.py"
+    assert per_file.loc["test_b.py", "compile_s"] == 1.0
+    assert per_prog.loc["jit(add)", "n"] == 3
+    assert per_prog.loc["jit(add)", "seconds"] == pytest.approx(0.45)
+    # jit(add): 0.15 s a compilation over both tests (0.15 in each): eager; jit(dot),
+    # one compilation of 0.9 s: a program, listed with the layer's
+    assert "eager operations (one-operation programs under 0.2 s each) 3 compilations" in md
+    listed = md.split("Programs, by XLA compile seconds")[1]
+    assert "jit(scan_runs)" in listed and "jit(dot)" in listed and "jit(add)" not in listed

@@ -19,7 +19,11 @@ def main(argv=None) -> int:
     if not jobs:
         print(f"merge: no job outputs (raw/windows.csv.gz) under {root}", file=sys.stderr)
         return 1
-    tabs = merge(jobs, out)
+    try:
+        tabs = merge(jobs, out)
+    except ValueError as e:
+        print(e, file=sys.stderr)
+        return 1
     print(f"merged {len(jobs)} jobs into {len(tabs)} tables in {out}/")
     return 0
 

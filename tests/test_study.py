@@ -3,6 +3,8 @@
 Fails if a table's schema changes or one of the paper's findings breaks on our stand-ins.
 """
 
+import shutil
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -166,3 +168,37 @@ def test_config_accepts_scalars_and_rejects_typos():
             compose("sweep", overrides=["decision.bmin=4"])
         with pytest.raises(ValueError, match="d_s must be positive"):
             to_study(compose("sweep", overrides=["d_s=-1"]))
+
+
+def test_merge_of_jobs_gives_the_same_tables_and_refuses_overlapping_jobs(study, tmp_path):
+    """``experiments.merge`` of a multirun split by scene rebuilds the single run's tables;
+    two jobs holding the same runs (a multirun over a setting, not over scenes, seeds or
+    ``d_s``) are refused, naming the jobs, with nothing written."""
+    from experiments import merge as merge_cli
+    from mfcl_jax.study.run import merge
+
+    out, tabs, scored, _ = study
+    raw = pd.read_csv(out / "raw" / "windows.csv.gz", low_memory=False)
+    jobs = []
+    for i, (_, part) in enumerate(raw.groupby("scene", sort=True)):
+        (tmp_path / f"j{i}" / "raw").mkdir(parents=True)
+        part.to_csv(tmp_path / f"j{i}" / "raw" / "windows.csv.gz", index=False)
+        jobs.append(tmp_path / f"j{i}")
+    merged = merge(jobs, tmp_path / "merged")
+    for name in ("policy_table", "selective_metrics", "ablation", "sensitivity", "symmetric_sim"):
+        pd.testing.assert_frame_equal(merged[name].reset_index(drop=True),
+                                      tabs[name].reset_index(drop=True),
+                                      check_dtype=False, check_exact=False,
+                                      atol=1e-4)  # the raw file keeps 4-6 digits  # fmt: skip
+    (tmp_path / "again" / "raw").mkdir(parents=True)
+    raw.to_csv(tmp_path / "again" / "raw" / "windows.csv.gz", index=False)
+    (tmp_path / "again2" / "raw").mkdir(parents=True)
+    raw.to_csv(tmp_path / "again2" / "raw" / "windows.csv.gz", index=False)
+    with pytest.raises(ValueError, match=r"is in more than one job \(.*again.*again2"):
+        merge([tmp_path / "again", tmp_path / "again2"], tmp_path / "twice")
+    assert not (tmp_path / "twice").exists()
+    root = tmp_path / "multirun"
+    for j in ("0", "1"):
+        shutil.copytree(tmp_path / "again", root / j)
+    assert merge_cli.main([str(root), str(tmp_path / "twice")]) == 1
+    assert not (tmp_path / "twice").exists()

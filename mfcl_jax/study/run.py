@@ -152,13 +152,29 @@ def merge(job_dirs, out, main_seed: int = 0) -> dict:
     for d in job_dirs:
         p = Path(d) / "raw" / RAW
         if p.exists():
-            frames.append(pd.read_csv(p))
+            # room names stay names ("209", never 209.0 where a column also holds NaN)
+            rooms = {"room": str, "true_room": str}
+            frames.append(pd.read_csv(p, dtype=rooms).assign(_job=str(d)))
         q = Path(d) / "raw" / "density_immunity.csv"
         if q.exists():
             dens = pd.read_csv(q)
     if not frames:
         raise FileNotFoundError(f"merge: no {RAW} under any of {list(map(str, job_dirs))}")
     scored = pd.concat(frames, ignore_index=True)
+    key = ["scene", "trajectory", "d_s", "seed", "policy", "k"]
+    twice = scored[scored.duplicated(key, keep=False)]
+    if len(twice):
+        # two jobs decided the same window (a multirun over a setting, ``decision.b_min=3,4``,
+        # not over scenes, seeds or d_s): one table of both would mix two settings
+        first = twice.iloc[0]
+        jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
+        raise ValueError(
+            f"merge: {first['scene']}/{first['trajectory']} at d_s={first['d_s']:g}, seed "
+            f"{first['seed']} is in more than one job ({', '.join(jobs)}): jobs that ran the "
+            "same runs with different settings are separate studies; merge jobs that split "
+            "scenes, seeds or d_s"
+        )
+    scored = scored.drop(columns="_job")
     # Runs are numbered per job; make them unique before grouping.
     scored["run"] = scored.groupby(["scene", "trajectory", "d_s", "seed"]).ngroup()
     Path(out).mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,7 @@ def main(argv=None) -> int:
         return 2
     root = Path(argv[0])
     out = Path(argv[1]) if len(argv) > 1 else Path("results")
-    from mfcl_jax.study.run import merge
+    from mfcl_jax.study.run import MergeError, merge
 
     jobs = sorted(p.parent.parent for p in root.glob("**/raw/windows.csv.gz"))
     if not jobs:
@@ -21,7 +21,7 @@ def main(argv=None) -> int:
         return 1
     try:
         tabs = merge(jobs, out)
-    except ValueError as e:
+    except MergeError as e:
         print(e, file=sys.stderr)
         return 1
     print(f"merged {len(jobs)} jobs into {len(tabs)} tables in {out}/")

@@ -175,7 +175,7 @@ def test_merge_of_jobs_gives_the_same_tables_and_refuses_overlapping_jobs(study,
     two jobs holding the same runs (a multirun over a setting, not over scenes, seeds or
     ``d_s``) are refused, naming the jobs, with nothing written."""
     from experiments import merge as merge_cli
-    from mfcl_jax.study.run import merge
+    from mfcl_jax.study.run import MergeError, merge
 
     out, tabs, scored, _ = study
     raw = pd.read_csv(out / "raw" / "windows.csv.gz", low_memory=False)
@@ -194,7 +194,7 @@ def test_merge_of_jobs_gives_the_same_tables_and_refuses_overlapping_jobs(study,
     raw.to_csv(tmp_path / "again" / "raw" / "windows.csv.gz", index=False)
     (tmp_path / "again2" / "raw").mkdir(parents=True)
     raw.to_csv(tmp_path / "again2" / "raw" / "windows.csv.gz", index=False)
-    with pytest.raises(ValueError, match=r"is in more than one job \(.*again.*again2"):
+    with pytest.raises(MergeError, match=r"is in more than one job \(.*again.*again2"):
         merge([tmp_path / "again", tmp_path / "again2"], tmp_path / "twice")
     assert not (tmp_path / "twice").exists()
     root = tmp_path / "multirun"

@@ -221,11 +221,11 @@ def _check_one_benchmark(parts) -> None:
         first = twice.iloc[0]
         jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
         fault = f"fault {first['fault']} {first['level']}" if first["fault"] else "nominal"
+        where = f"more than one job ({', '.join(jobs)})" if len(jobs) > 1 else f"{jobs[0]} twice"
         raise BenchmarkError(
             f"merge: run {first['name']!r} ({fault}, policy {first['policy']}, set "
-            f"{first['set']}) is in more than one job ({', '.join(jobs)}): the jobs overlap "
-            "(split a multirun by families, not by fault axes: every axis repeats the nominal "
-            "runs)"
+            f"{first['set']}) is in {where}: the jobs overlap (split a multirun by families, "
+            "not by fault axes: every axis repeats the nominal runs)"
         )
 
 

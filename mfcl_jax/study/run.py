@@ -18,7 +18,7 @@ from mfcl_jax.report import tables
 from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.study import density, pipeline, report
 
-__all__ = ["run_study", "merge"]
+__all__ = ["run_study", "merge", "MergeError"]
 
 RAW = "windows.csv.gz"
 
@@ -146,6 +146,10 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     return tabs
 
 
+class MergeError(ValueError):
+    """Jobs that cannot make one study (``merge``); the message names them."""
+
+
 def merge(job_dirs, out, main_seed: int = 0) -> dict:
     """Builds the tables from several jobs' raw outputs (a Hydra multirun)."""
     frames, dens = [], None
@@ -168,7 +172,7 @@ def merge(job_dirs, out, main_seed: int = 0) -> dict:
         # not over scenes, seeds or d_s): one table of both would mix two settings
         first = twice.iloc[0]
         jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
-        raise ValueError(
+        raise MergeError(
             f"merge: {first['scene']}/{first['trajectory']} at d_s={first['d_s']:g}, seed "
             f"{first['seed']} is in more than one job ({', '.join(jobs)}): jobs that ran the "
             "same runs with different settings are separate studies; merge jobs that split "

@@ -16,7 +16,7 @@ import pandas as pd
 
 from mfcl_jax.bench import figures, report, suite
 from mfcl_jax.bench.calibration import fault_level_calibration, ratio_calibration
-from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, validate
+from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.io.atomic import atomic_write
 from mfcl_jax.report.tables import write_table
@@ -186,7 +186,10 @@ def read_runs(job_dirs) -> pd.DataFrame:
         f = Path(d) / "runs.csv"
         if not f.is_file():
             raise FileNotFoundError(f"merge: {f} not found (did the job finish?)")
-        parts.append(_read_table(f).assign(_job=str(d)))
+        try:
+            parts.append(_read_table(f).assign(_job=str(d)))
+        except (ValueError, OSError) as e:  # a damaged job file
+            raise BenchmarkError(f"merge: {f}: not a readable table ({e})") from e
     _check_one_benchmark(parts)
     runs = pd.concat(parts, ignore_index=True).drop(columns="_job")
     runs["fault"] = runs["fault"].fillna("")
@@ -201,8 +204,6 @@ def _check_one_benchmark(parts) -> None:
     ``d_s`` (``runs.csv`` written before the column existed is not checked) and no run (name,
     fault, level, policy, threshold set) in two jobs (jobs split by fault axis all repeat the
     nominal runs); otherwise a ``BenchmarkError`` naming the jobs."""
-    from mfcl_jax.bench.config import BenchmarkError
-
     d_s = {}
     for p in parts:
         for v in p["d_s"].dropna().unique() if "d_s" in p else ():

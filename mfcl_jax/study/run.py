@@ -158,7 +158,10 @@ def merge(job_dirs, out, main_seed: int = 0) -> dict:
         if p.exists():
             # room names stay names ("209", never 209.0 where a column also holds NaN)
             rooms = {"room": str, "true_room": str}
-            frames.append(pd.read_csv(p, dtype=rooms).assign(_job=str(d)))
+            try:
+                frames.append(pd.read_csv(p, dtype=rooms).assign(_job=str(d)))
+            except (ValueError, OSError, EOFError) as e:  # a damaged or truncated job file
+                raise MergeError(f"merge: {p}: not a readable table ({e})") from e
         q = Path(d) / "raw" / "density_immunity.csv"
         if q.exists():
             dens = pd.read_csv(q)

@@ -94,10 +94,12 @@ def report(tests, progs, wall_s: float, stamp: str):
     per_prog["most_in"] = top_files.reindex(per_prog.index)
     total = per_file.sum(numeric_only=True)
     comp = total["compile_s"] + total["trace_s"] + total["lower_s"]
+    workers = tests.groupby("worker")["wall_s"].sum()
+    balance = ", ".join(f"{w} {v:.0f} s" for w, v in workers.items())
     head = (
         f"One run of `benchmarks/suite.py`, {stamp}: `python -m pytest` (two workers, a fresh "
         f"compilation cache), {wall_s:.0f} s of wall time; the tests' seconds summed over both "
-        f"workers: {total['wall_s']:.0f} s, of which in-process compilation "
+        f"workers: {total['wall_s']:.0f} s ({balance}), of which in-process compilation "
         f"{comp:.0f} s ({100 * comp / max(total['wall_s'], 1e-9):.0f} %: XLA "
         f"{total['compile_s']:.0f} s, tracing {total['trace_s']:.0f} s, lowering "
         f"{total['lower_s']:.0f} s; subprocesses' compilations not counted); eager operations "

@@ -92,6 +92,7 @@ def test_suite_report_charges_compilation_to_files_and_names_the_eager_operation
     per_file, per_prog, md = suite.report(tests, progs, wall_s=12.0, stamp="now")
     assert per_file.loc["test_a.py", "wall_s"] == 12.0 and per_file.index[0] == "test_a.py"
     assert per_file.loc["test_b.py", "compile_s"] == 1.0
+    assert "16 s (gw0 10 s, gw1 6 s)" in md  # the controller's copy (main) left out
     assert per_prog.loc["jit(add)", "n"] == 3
     assert per_prog.loc["jit(add)", "seconds"] == pytest.approx(0.45)
     # jit(add): 0.15 s a compilation over both tests (0.15 in each): eager; jit(dot),

@@ -9,7 +9,7 @@ from mfcl_jax import se2
 from mfcl_jax.decision import REASONS, DecisionParams, decision_maps, layer
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.rivals import RivalParams, image_size, path_cloud, rival_fields, search
-from tests._layer import CAPS, evidence_of, lanes_of, step, window
+from tests._layer import CAPS, GRID, N_ROOMS, evidence_of, lanes_of, step, window
 from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
@@ -76,7 +76,9 @@ def _row_walk():
     """Four identical rooms in a row (no congruence probe), walked to and fro along y = 2.5
     in the first two: ``(maps, run)``."""
     fp = row_of_rooms()
-    m = pad_maps(decision_maps(fp, min_iou=1.01), (340, 340), 4, n_motions=8, n_offsets=32)
+    # the tests' grid and room capacity: the robot's step compiled for test_decision_rotation's
+    # walks serves these too (one program for the worker)
+    m = pad_maps(decision_maps(fp, min_iou=1.01), GRID, N_ROOMS, n_motions=8, n_offsets=32)
     maps = jax.tree.map(jnp.asarray, m)
     run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
                    fp=fp)  # fmt: skip

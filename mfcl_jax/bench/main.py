@@ -19,6 +19,7 @@ from mfcl_jax.bench.calibration import fault_level_calibration, ratio_calibratio
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.io.atomic import atomic_write
+from mfcl_jax.report import jobs
 from mfcl_jax.report.tables import write_table
 
 __all__ = ["run_benchmark", "write_tables", "write_margins", "read_runs", "merge"]
@@ -217,16 +218,14 @@ def _check_one_benchmark(parts) -> None:
     key = ["name", "fault", "level", "policy", "set"]
     rows = pd.concat([p[[*key, "_job"]] for p in parts], ignore_index=True)
     rows = rows.fillna({"fault": "", "level": ""})
-    twice = rows[rows.duplicated(key, keep=False)]
-    if len(twice):
-        first = twice.iloc[0]
-        jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
+    found = jobs.repeated(rows, key)
+    if found is not None:
+        first, holders = found
         fault = f"fault {first['fault']} {first['level']}" if first["fault"] else "nominal"
-        where = f"more than one job ({', '.join(jobs)})" if len(jobs) > 1 else f"{jobs[0]} twice"
         raise BenchmarkError(
             f"merge: run {first['name']!r} ({fault}, policy {first['policy']}, set "
-            f"{first['set']}) is in {where}: the jobs overlap (split a multirun by families, "
-            "not by fault axes: every axis repeats the nominal runs)"
+            f"{first['set']}) is in {jobs.where(holders)}: the jobs overlap (split a multirun "
+            "by families, not by fault axes: every axis repeats the nominal runs)"
         )
 
 

@@ -14,7 +14,7 @@ from mfcl_jax.config import StudyConfig
 from mfcl_jax.decision.inputs import run_inputs
 from mfcl_jax.decision.lanes import STRICT_IOU
 from mfcl_jax.frontend.candidates import no_candidates
-from mfcl_jax.report import tables
+from mfcl_jax.report import jobs, tables
 from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.study import density, pipeline, report
 
@@ -169,17 +169,15 @@ def merge(job_dirs, out, main_seed: int = 0) -> dict:
         raise FileNotFoundError(f"merge: no {RAW} under any of {list(map(str, job_dirs))}")
     scored = pd.concat(frames, ignore_index=True)
     key = ["scene", "trajectory", "d_s", "seed", "policy", "k"]
-    twice = scored[scored.duplicated(key, keep=False)]
-    if len(twice):
+    found = jobs.repeated(scored, key)
+    if found is not None:
         # two jobs decided the same window (a multirun over a setting, ``decision.b_min=3,4``,
         # not over scenes, seeds or d_s): one table of both would mix two settings
-        first = twice.iloc[0]
-        jobs = sorted(set(twice.loc[(twice[key] == first[key]).all(axis=1), "_job"]))
+        first, holders = found
         raise MergeError(
             f"merge: {first['scene']}/{first['trajectory']} at d_s={first['d_s']:g}, seed "
-            f"{first['seed']} is in more than one job ({', '.join(jobs)}): jobs that ran the "
-            "same runs with different settings are separate studies; merge jobs that split "
-            "scenes, seeds or d_s"
+            f"{first['seed']} is in {jobs.where(holders)}: jobs that ran the same runs with "
+            "different settings are separate studies; merge jobs that split scenes, seeds or d_s"
         )
     scored = scored.drop(columns="_job")
     # Runs are numbered per job; make them unique before grouping.

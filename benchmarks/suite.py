@@ -63,8 +63,7 @@ def _frames(folder: pathlib.Path):
 def _eager(progs):
     """Rows of the eager single operations: programs named after one operation whose
     compilations took under ``EAGER_S`` each on average (over every test that compiled them)."""
-    name = progs["program"].str.extract(r"^jit\((\w+)\)$")[0]
-    one_op = name.notna() & ~name.isin(["scan_runs", "register", "update", "search", "_mcl"])
+    one_op = progs["program"].str.fullmatch(r"jit\(\w+\)")  # not jit(<lambda>)
     per = progs.groupby("program")[["seconds", "n"]].transform("sum")
     return one_op & (per["seconds"] / per["n"].clip(lower=1) < EAGER_S)
 

@@ -2,6 +2,7 @@
 metre, the truth explaining the path better than a shifted or turned placement, and a copy of
 the building explaining it as well as the truth."""
 
+import jax
 import numpy as np
 import pytest
 from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
@@ -80,3 +81,48 @@ def test_the_uniqueness_lanes_fit_reaches_a_peak_past_the_fits_own_rounds(scene)
     assert float(L) >= L0 - 1e-3 and np.hypot(*np.asarray(a)[:2]) < 0.08, (a, L, L0)
     a_own, L_own = path_llr.refine(start, pe, fields)
     assert np.hypot(*np.asarray(a_own)[:2]) > 0.2 and float(L_own) < L0 - 1.0, (a_own, L_own)
+
+
+def test_the_uniqueness_tests_edge_is_the_best_placement_just_past_its_line(scene):
+    """On a short path the peak is wider than the line a commit is judged by (1 m, 5 deg
+    where the robot is): a placement just past it, on the same peak, climbs back into the
+    best one when fitted freely, so ``uniqueness.edge`` fits placements that stay outside.
+    Its score is at least that of every placement of a dense ring just past the line."""
+    from mfcl_jax.decision.uniqueness import DEFAULT_UNIQUE as u
+    from mfcl_jax.decision.uniqueness import edge
+
+    fields = scene[1]
+    windows = [0, 1, 2]
+    pe = _evidence(scene, windows)
+    x_now = np.asarray(scene[2][scene[3]][windows[-1]], np.float32)
+    best, L_best = path_llr.refine(np.zeros(3, np.float32), pe, fields, steps=u.polish)
+    e, L_e = edge(best, x_now, pe, fields)
+    now = np.asarray(se2.compose(best, x_now))
+
+    def judged(a):
+        dxy, dth = se2.distance_pair(se2.compose(a, x_now), now)
+        return np.asarray(dxy), np.degrees(np.asarray(dth))
+
+    dxy, dth = judged(e)
+    assert dxy > 1.0 or dth > 5.0, (dxy, dth)
+    # within log(1 / alpha) of the best at alpha = 1e-2: the lane waits for a longer path
+    assert 0.0 < float(L_best) - float(L_e) < np.log(1e2), (float(L_best), float(L_e))
+    # a dense ring just past the line: moved 1.0-1.3 m, or turned 5-8 deg about points of
+    # the path, each with small turns and shifts of its own
+    rng = np.random.default_rng(0)
+    n = 4000
+    phi, r = rng.uniform(0, 2 * np.pi, n), rng.uniform(1.01, 1.3, n)
+    moved = now + np.stack([r * np.cos(phi), r * np.sin(phi), np.radians(rng.uniform(-4, 4, n))], 1)
+    th = np.radians(rng.uniform(5.05, 8.0, n)) * rng.choice([-1, 1], n)
+    q = now[:2] + rng.uniform(-8, 8, (n, 2))
+    turned_xy = q + np.asarray(se2.rotate(th, now[:2] - q))
+    turned = np.concatenate([turned_xy, (now[2] + th)[:, None]], 1)
+    ring = se2.compose(np.concatenate([moved, turned]).astype(np.float32), se2.inverse(x_now))
+    sxy, sth = judged(ring)
+    ring = np.asarray(ring)[(sxy > 1.0) | (sth > 5.0)]
+    L_ring = np.asarray(jax.vmap(lambda a: path_llr.log_likelihood(a, pe, fields))(ring))
+    assert float(L_e) >= L_ring.max() - 0.05, (float(L_e), L_ring.max(), float(L_best))
+    # why it is searched apart: the best of the ring, fitted freely, ends inside the line
+    a, _ = path_llr.refine(ring[np.argmax(L_ring)], pe, fields, steps=u.polish)
+    fxy, fth = judged(a)
+    assert fxy <= 1.0 and fth <= 5.0, (fxy, fth)

@@ -11,7 +11,11 @@ explains what I have seen"; this module checks that statement, with a stated err
 2. each is fitted to the path under the observation model (``path_llr.refine``, a first
    round of 0.3 m / 3 deg steps, then the fit's own rounds to 1.5 cm / 0.15 deg), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
-   5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``;
+   5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``. A candidate
+   on ``A*``'s own peak climbs into ``A*``, so 12 more start just past the line around it
+   (the robot moved 1.05 m or turned 5.25 deg) and climb while they stay outside: where the
+   peak is wider than the line (a short path that does not tell a 5 deg turn apart), its
+   edge is the competitor, and the test waits until the path narrows it;
 3. the statement holds when ``llr >= log(1 / alpha)`` (a lane's knob, ``lanes``): under the
    model, a wrong placement reaches that margin against the truth with probability at most
    ``alpha`` (Wald's bound for one sequential test; with a search that covers every
@@ -39,7 +43,7 @@ from mfcl_jax.decision import gate, rivals
 from mfcl_jax.frontend import path_llr
 from mfcl_jax.frontend.path_llr import LLRParams
 
-__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "skipped"]
+__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "edge", "skipped"]
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,39 @@ def skipped() -> UniqStats:
     return UniqStats(z3, z3, f, jnp.bool_(False), f, jnp.bool_(False))
 
 
+def _rim(best, x_now, centre, u: UniqueParams):
+    """Placements just past ``best``'s neighbourhood, judged where the robot is now: the
+    robot moved 1.05 ``near_xy`` in 8 directions, or turned by 1.05 ``near_deg`` either way
+    about itself or about ``centre`` (the path's returns, plan frame). ``(12, 3)``."""
+    now = se2.compose(best, x_now)
+    r, th = 1.05 * u.near_xy, math.radians(1.05 * u.near_deg)
+    phi = jnp.arange(8, dtype=jnp.float32) * (math.pi / 4)
+    moved = now + r * jnp.stack([jnp.cos(phi), jnp.sin(phi), jnp.zeros_like(phi)], -1)
+    q = jnp.stack([now[:2], now[:2], centre, centre])
+    s = jnp.asarray([th, -th, th, -th], jnp.float32)
+    turned = jnp.concatenate([q + se2.rotate(s, now[:2] - q), (now[2] + s)[:, None]], -1)
+    return se2.compose(jnp.concatenate([moved, turned]), se2.inverse(x_now))
+
+
+def _outside(a, best, x_now, u: UniqueParams):
+    """Placements ``a (*, 3)`` outside ``best``'s neighbourhood, judged where the robot is."""
+    dxy, dth = se2.distance_pair(se2.compose(a, x_now), se2.compose(best, x_now))
+    return (dxy > u.near_xy) | (dth > math.radians(u.near_deg))
+
+
+def edge(best, x_now, pe, fields, u: UniqueParams = DEFAULT_UNIQUE):
+    """The best placement just outside ``best``'s neighbourhood on its own peak, and its
+    ``L``: the ``_rim``'s placements, each climbing (``u.polish``) while it stays outside."""
+    w = jnp.maximum(pe.pw, 0.0)
+    c = jnp.sum(pe.pts * w[:, None], 0) / jnp.maximum(jnp.sum(w), 1e-9)
+    rim = _rim(best, x_now, se2.apply(best, c[None])[0], u)
+    allowed = lambda a: _outside(a, best, x_now, u)  # noqa: E731
+    R, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish, allowed))(rim)
+    L = jnp.where(allowed(R), L, -jnp.inf)
+    i = jnp.argmax(L)
+    return R[i], L[i]
+
+
 def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, champion,
                champion_ok, winner_b1, tau_c, delta_xy, delta_theta,
                u: UniqueParams = DEFAULT_UNIQUE) -> UniqStats:  # fmt: skip
@@ -114,9 +151,11 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     best = A[i]
     # judged where the robot is now: the same answer is within the line a commit is judged by
     x_now = h.X[k]
-    dxy, dth = se2.distance_pair(se2.compose(A, x_now), se2.compose(best, x_now))
-    far = ok & ((dxy > u.near_xy) | (dth > math.radians(u.near_deg)))
-    lc = jnp.where(far, L, -jnp.inf)
+
+    lc = jnp.where(ok & _outside(A, best, x_now, u), L, -jnp.inf)
+    # the candidates climb into A* from its own peak: its edge is searched apart
+    e, le = edge(best, x_now, pe, fields, u)
+    A, lc = jnp.concatenate([A, e[None]]), jnp.concatenate([lc, le[None]])
     j = jnp.argmax(lc)
     llr = L[i] - lc[j]
     pvalid = jnp.arange(path.pose.shape[0]) < path.n

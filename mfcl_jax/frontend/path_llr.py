@@ -134,11 +134,13 @@ def log_likelihood(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRPa
     return jnp.sum(pe.pw * f) + jnp.sum(pe.fw * g)
 
 
-def _polish(a, pe, fields, p, step_xy, step_deg):
+def _polish(a, pe, fields, p, step_xy, step_deg, allowed=None):
     d = jnp.arange(-1, 2, dtype=jnp.float32)
     dx, dy, dt = jnp.meshgrid(d * step_xy, d * step_xy, d * math.radians(step_deg), indexing="ij")
     cand = a + jnp.stack([dx.ravel(), dy.ravel(), dt.ravel()], -1)
     sc = jax.vmap(lambda c: log_likelihood(c, pe, fields, p))(cand)
+    if allowed is not None:  # the centre (``a`` itself) is allowed: the round never leaves
+        sc = jnp.where(allowed(cand), sc, -jnp.inf)
     i = jnp.argmax(sc)
     return cand[i], sc[i]
 
@@ -148,9 +150,10 @@ REFINE_STEPS = ((0.12, 1.2), (0.04, 0.4), (0.015, 0.15))
 
 
 def refine(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRParams(),
-           steps=REFINE_STEPS):  # fmt: skip
+           steps=REFINE_STEPS, allowed=None):  # fmt: skip
     """The best placement near ``a`` (rounds of 27 poses, ``steps``: by default 12 cm /
-    1.2 deg, 4 cm / 0.4 deg, 1.5 cm / 0.15 deg) and its ``L``."""
+    1.2 deg, 4 cm / 0.4 deg, 1.5 cm / 0.15 deg) and its ``L``; with ``allowed`` (placements
+    ``(N, 3)`` -> ``(N,)`` bool, true at ``a``), the best of the placements it allows."""
     for step_xy, step_deg in steps[:-1]:
-        a, _ = _polish(a, pe, fields, p, step_xy, step_deg)
-    return _polish(a, pe, fields, p, *steps[-1])
+        a, _ = _polish(a, pe, fields, p, step_xy, step_deg, allowed)
+    return _polish(a, pe, fields, p, *steps[-1], allowed)

@@ -87,6 +87,13 @@ def _polish(found, pe, fields):
     return jax.vmap(lambda a: path_llr.refine(a, pe, fields, U.llr, U.polish))(found)
 
 
+@jax.jit
+def _edge(a, x_now, pe, fields):
+    from mfcl_jax.decision.uniqueness import edge
+
+    return edge(a, x_now, pe, fields)
+
+
 def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     """The branch and bound at window ``k`` of ``rec`` for the committed ``anchor (3,)``
     (``^B T_L``)."""
@@ -120,8 +127,9 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     r = path_bound.certify(pe, fields, bf, a, X[-1], L - margin)
     out = dict(outcome=r.outcome, why=r.why, L_star=L, margin=margin, cells=r.cells,
                levels=r.levels, seconds=round(r.seconds, 2), metres=length)  # fmt: skip
-    # the lane's grid test on this evidence (its search's placements only; the lane also
-    # fits the newest window's registrations and the probe's aliases), fitted as the lane fits
+    # the lane's grid test on this evidence (its search's placements only, and the edge of
+    # A*'s peak; the lane also fits the newest window's registrations and the probe's
+    # aliases), fitted as the lane fits
     found, ok = _search(ev_stack, X, fields, rivals.image_size([rec.floorplan]))
     A, La = _polish(found, pe, fields)
     A, La = np.asarray(A, np.float64), np.asarray(La, np.float64)
@@ -130,7 +138,9 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     far = (np.hypot(*(cn - an)[:, :2].T) > 1.0) | (
         np.abs(np.angle(np.exp(1j * (cn[:, 2] - an[2])))) > math.radians(5.0)
     )
-    out["llr_search"] = L - np.max(np.where(far & np.asarray(ok), La, -np.inf))
+    # and the edge of A*'s own peak, which the lane also fits
+    _, Le = _edge(jnp.asarray(a, jnp.float32), jnp.asarray(x_now, jnp.float32), pe, fields)
+    out["llr_search"] = L - max(np.max(np.where(far & np.asarray(ok), La, -np.inf)), float(Le))
     if r.competitor is not None:
         # where the competitor places the robot now, against A*
         cn, an = se2.compose_host(r.competitor, x_now), se2.compose_host(a, x_now)

@@ -9,6 +9,8 @@ kernels' cost does not depend on where the points fall, only on how many there a
 the plan's grid). The fit runs the lane's polish rounds (``UniqueParams.polish`` where the
 side has it: since ``ff373ca`` a first round of 0.3 m / 3 deg before the three of
 ``path_llr.REFINE_STEPS``), so against ``ff373ca`` its ratio is that round's cost.
+Where the side has it, the edge of the best placement's own peak (``uniqueness.edge``: 12
+placements just past its 1 m / 5 deg line, each fitted while it stays outside) is timed too.
 Buildings: the stand-in ``three_rooms``, the Office_A IFC storey and the Willow Garage map
 (the benchmark's largest grid).
 
@@ -82,9 +84,12 @@ from mfcl_jax.decision import uniqueness
 U = uniqueness.DEFAULT_UNIQUE
 kw = dict(steps=U.polish) if hasattr(U, "polish") else {}
 fit = jax.jit(lambda c: jax.vmap(lambda a: path_llr.refine(a, pe, fields, U.llr, **kw))(c))
+kernels = [("rival search", search, (ev_p, ev_o, ev_m, X)), ("path fit x16", fit, (cand,))]
+if hasattr(uniqueness, "edge"):  # the edge of A*'s own peak: 12 fits that stay outside it
+    edge = jax.jit(lambda a, x: uniqueness.edge(a, x, pe, fields, U))
+    kernels.append(("edge of the peak", edge, (cand[0], X[-1])))
 out = {}
-for kernel, f, args in (("rival search", search, (ev_p, ev_o, ev_m, X)),
-                        ("path fit x16", fit, (cand,))):
+for kernel, f, args in kernels:
     t0 = time.perf_counter(); r = jax.block_until_ready(f(*args))
     compile_s = time.perf_counter() - t0
     ts = []
@@ -141,10 +146,13 @@ def main(argv=None) -> int:
                 res = {side: run_side(tree, b, a.repeats) for side, tree in
                        (("old", old), ("new", ROOT))}  # fmt: skip
                 for kernel in res["new"]["kernels"]:
-                    agree = same(res["old"]["kernels"][kernel]["result"],
-                                 res["new"]["kernels"][kernel]["result"])  # fmt: skip
-                    for side in ("old", "new"):
-                        k = res[side]["kernels"][kernel]
+                    # a kernel the old side lacks: its old row is empty
+                    none = dict(result=None, median_ms=float("nan"), compile_s=float("nan"))
+                    ko = res["old"]["kernels"].get(kernel, none)
+                    agree = ko["result"] is not None and same(
+                        ko["result"], res["new"]["kernels"][kernel]["result"]
+                    )
+                    for side, k in (("old", ko), ("new", res["new"]["kernels"][kernel])):
                         rows.append(dict(building=b, grid="x".join(map(str, res[side]["grid"])),
                                          kernel=kernel, side=side, median_ms=k["median_ms"],
                                          compile_s=k["compile_s"], agree=agree))  # fmt: skip

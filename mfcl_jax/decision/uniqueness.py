@@ -12,10 +12,10 @@ explains what I have seen"; this module checks that statement, with a stated err
    round of 0.3 m / 3 deg steps, then the fit's own rounds to 1.5 cm / 0.15 deg), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
    5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``. A candidate
-   on ``A*``'s own peak climbs into ``A*``, so 12 more start just past the line around it
-   (the robot moved 1.05 m or turned 5.25 deg) and climb while they stay outside: where the
-   peak is wider than the line (a short path that does not tell a 5 deg turn apart), its
-   edge is the competitor, and the test waits until the path narrows it;
+   on ``A*``'s own peak climbs into ``A*``, so the best 3 of 12 placements just past the
+   line around it (the robot moved 1.05 m or turned 5.25 deg) climb while they stay
+   outside: where the peak is wider than the line (a short path that does not tell a 5 deg
+   turn apart), its edge is the competitor, and the test waits until the path narrows it;
 3. the statement holds when ``llr >= log(1 / alpha)`` (a lane's knob, ``lanes``): under the
    model, a wrong placement reaches that margin against the truth with probability at most
    ``alpha`` (Wald's bound for one sequential test; with a search that covers every
@@ -57,6 +57,7 @@ class UniqueParams:
     n_search: int = 12
     n_newest: int = 3  # best registrations of the newest window
     max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
+    n_edge: int = 3  # placements of the rim around A* fitted (its best by L): its edge
     llr: LLRParams = LLRParams()
     # the fit's rounds of 27 poses, (m, deg): a first round of 0.3 m / 3 deg reaches a peak
     # up to about 0.6 m and 6 deg from a candidate, where a competitor narrower than the
@@ -113,10 +114,13 @@ def _outside(a, best, x_now, u: UniqueParams):
 
 def edge(best, x_now, pe, fields, u: UniqueParams = DEFAULT_UNIQUE):
     """The best placement just outside ``best``'s neighbourhood on its own peak, and its
-    ``L``: the ``_rim``'s placements, each climbing (``u.polish``) while it stays outside."""
+    ``L``: the ``_rim``'s ``u.n_edge`` best placements, each climbing (``u.polish``) while
+    it stays outside."""
     w = jnp.maximum(pe.pw, 0.0)
     c = jnp.sum(pe.pts * w[:, None], 0) / jnp.maximum(jnp.sum(w), 1e-9)
     rim = _rim(best, x_now, se2.apply(best, c[None])[0], u)
+    L0 = jax.vmap(lambda a: path_llr.log_likelihood(a, pe, fields, u.llr))(rim)
+    rim = rim[jax.lax.top_k(L0, u.n_edge)[1]]
     allowed = lambda a: _outside(a, best, x_now, u)  # noqa: E731
     R, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish, allowed))(rim)
     L = jnp.where(allowed(R), L, -jnp.inf)

@@ -9,7 +9,14 @@ from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax import se2
 from mfcl_jax.decision import rivals
+from mfcl_jax.decision import uniqueness as U
 from mfcl_jax.frontend import path_llr
+
+# the kernels jitted once (run op by op they compile each operation per shape: hundreds)
+evidence = jax.jit(path_llr.path_evidence)
+loglik = jax.jit(path_llr.log_likelihood)
+refine = jax.jit(path_llr.refine, static_argnames="steps")
+edge = jax.jit(U.edge)
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +34,7 @@ def _evidence(scene, windows):
     # one "window" per scan here; the odometry frame is the plan frame (anchor = identity)
     X = traj[ks][windows]
     length = float(np.sum(np.hypot(*np.diff(traj[:, :2], axis=0).T)))
-    return path_llr.path_evidence(pts[windows], org[windows], msk[windows], X, length)
+    return evidence(pts[windows], org[windows], msk[windows], X, length)
 
 
 def test_a_scan_seen_by_two_windows_counts_once(scene):
@@ -43,11 +50,11 @@ def test_the_true_placement_explains_the_path_best(scene):
     fields = scene[1]
     pe = _evidence(scene, list(range(8)))
     truth = np.zeros(3, np.float32)
-    L0 = float(path_llr.log_likelihood(truth, pe, fields))
+    L0 = float(loglik(truth, pe, fields))
     for wrong in ([0.6, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, np.radians(4.0)]):
-        Lw = float(path_llr.log_likelihood(np.asarray(wrong, np.float32), pe, fields))
+        Lw = float(loglik(np.asarray(wrong, np.float32), pe, fields))
         assert L0 - Lw > 3.0, (wrong, L0, Lw)
-    a, L = path_llr.refine(np.asarray([0.08, -0.05, 0.01], np.float32), pe, fields)
+    a, L = refine(np.asarray([0.08, -0.05, 0.01], np.float32), pe, fields)
     assert float(L) >= L0 - 1e-3 and np.hypot(*np.asarray(a)[:2]) < 0.05
 
 
@@ -59,10 +66,10 @@ def test_a_congruent_copy_explains_a_walk_inside_one_room_as_well_as_the_truth()
     ks = np.linspace(0, len(traj) - 1, 6).round().astype(int)
     pts, org, msk = evidence_at(fp, traj[ks])
     length = float(np.sum(np.hypot(*np.diff(traj[:, :2], axis=0).T)))
-    pe = path_llr.path_evidence(pts, org, msk, traj[ks], length)
-    L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
-    shifted = se2.compose(np.asarray([PITCH, 0.0, 0.0]), np.zeros(3))
-    L1 = float(path_llr.log_likelihood(np.asarray(shifted, np.float32), pe, fields))
+    pe = evidence(pts, org, msk, traj[ks], length)
+    L0 = float(loglik(np.zeros(3, np.float32), pe, fields))
+    shifted = se2.compose_host(np.asarray([PITCH, 0.0, 0.0]), np.zeros(3))
+    L1 = float(loglik(np.asarray(shifted, np.float32), pe, fields))
     assert abs(L0 - L1) < 0.5, (L0, L1)
 
 
@@ -71,15 +78,13 @@ def test_the_uniqueness_lanes_fit_reaches_a_peak_past_the_fits_own_rounds(scene)
     placement 0.45 m, 0.3 m and 4 deg off the truth it reaches the truth, which the fit's own
     rounds (at most 0.175 m and 1.75 deg from where they start) cannot (the path's peak lies
     4-5 cm from the truth here: the evidence's rays end on the plan's raster)."""
-    from mfcl_jax.decision.uniqueness import DEFAULT_UNIQUE
-
     fields = scene[1]
     pe = _evidence(scene, list(range(8)))
-    L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
+    L0 = float(loglik(np.zeros(3, np.float32), pe, fields))
     start = np.asarray([0.45, -0.3, np.radians(4.0)], np.float32)
-    a, L = path_llr.refine(start, pe, fields, steps=DEFAULT_UNIQUE.polish)
+    a, L = refine(start, pe, fields, steps=U.DEFAULT_UNIQUE.polish)
     assert float(L) >= L0 - 1e-3 and np.hypot(*np.asarray(a)[:2]) < 0.08, (a, L, L0)
-    a_own, L_own = path_llr.refine(start, pe, fields)
+    a_own, L_own = refine(start, pe, fields)
     assert np.hypot(*np.asarray(a_own)[:2]) > 0.2 and float(L_own) < L0 - 1.0, (a_own, L_own)
 
 
@@ -88,20 +93,18 @@ def test_the_uniqueness_tests_edge_is_the_best_placement_just_past_its_line(scen
     where the robot is): a placement just past it, on the same peak, climbs back into the
     best one when fitted freely, so ``uniqueness.edge`` fits placements that stay outside.
     Its score is at least that of every placement of a dense ring just past the line."""
-    from mfcl_jax.decision.uniqueness import DEFAULT_UNIQUE as u
-    from mfcl_jax.decision.uniqueness import edge
-
+    u = U.DEFAULT_UNIQUE
     fields = scene[1]
     windows = [0, 1, 2]
     pe = _evidence(scene, windows)
     x_now = np.asarray(scene[2][scene[3]][windows[-1]], np.float32)
-    best, L_best = path_llr.refine(np.zeros(3, np.float32), pe, fields, steps=u.polish)
+    best, L_best = refine(np.zeros(3, np.float32), pe, fields, steps=u.polish)
     e, L_e = edge(best, x_now, pe, fields)
-    now = np.asarray(se2.compose(best, x_now))
+    now = se2.compose_host(np.asarray(best), x_now)
 
-    def judged(a):
-        dxy, dth = se2.distance_pair(se2.compose(a, x_now), now)
-        return np.asarray(dxy), np.degrees(np.asarray(dth))
+    def judged(a):  # where the placement puts the robot, against A* (host arithmetic)
+        d = se2.compose_host(np.asarray(a), x_now) - now
+        return np.hypot(d[..., 0], d[..., 1]), np.abs(np.degrees(np.angle(np.exp(1j * d[..., 2]))))
 
     dxy, dth = judged(e)
     assert dxy > 1.0 or dth > 5.0, (dxy, dth)
@@ -115,14 +118,16 @@ def test_the_uniqueness_tests_edge_is_the_best_placement_just_past_its_line(scen
     moved = now + np.stack([r * np.cos(phi), r * np.sin(phi), np.radians(rng.uniform(-4, 4, n))], 1)
     th = np.radians(rng.uniform(5.05, 8.0, n)) * rng.choice([-1, 1], n)
     q = now[:2] + rng.uniform(-8, 8, (n, 2))
-    turned_xy = q + np.asarray(se2.rotate(th, now[:2] - q))
+    c, s_ = np.cos(th)[:, None], np.sin(th)[:, None]
+    v = now[:2] - q
+    turned_xy = q + np.concatenate([c * v[:, :1] - s_ * v[:, 1:], s_ * v[:, :1] + c * v[:, 1:]], 1)
     turned = np.concatenate([turned_xy, (now[2] + th)[:, None]], 1)
-    ring = se2.compose(np.concatenate([moved, turned]).astype(np.float32), se2.inverse(x_now))
+    ring = se2.compose_host(np.concatenate([moved, turned]), se2.inverse_host(x_now))
     sxy, sth = judged(ring)
-    ring = np.asarray(ring)[(sxy > 1.0) | (sth > 5.0)]
-    L_ring = np.asarray(jax.vmap(lambda a: path_llr.log_likelihood(a, pe, fields))(ring))
+    ring = ring[(sxy > 1.0) | (sth > 5.0)].astype(np.float32)
+    L_ring = np.asarray(jax.jit(jax.vmap(loglik, in_axes=(0, None, None)))(ring, pe, fields))
     assert float(L_e) >= L_ring.max() - 0.05, (float(L_e), L_ring.max(), float(L_best))
     # why it is searched apart: the best of the ring, fitted freely, ends inside the line
-    a, _ = path_llr.refine(ring[np.argmax(L_ring)], pe, fields, steps=u.polish)
+    a, _ = refine(ring[np.argmax(L_ring)], pe, fields, steps=u.polish)
     fxy, fth = judged(a)
     assert fxy <= 1.0 and fth <= 5.0, (fxy, fth)

@@ -241,9 +241,18 @@ def decide_and_score(col: Collected, cfg: BenchmarkConfig, ours) -> pd.DataFrame
     )
     params = [DecisionParams().replace(**k) for k in KNOB_SETS]
     t0 = time.perf_counter()
+    n_runs, said = batch.runs.n_runs, [t0]
+
+    def progress(done: int) -> None:  # the longest stage: a line every 30 s and at the end
+        now = time.perf_counter()
+        if done >= n_runs or now - said[0] >= 30.0:
+            said[0] = now
+            _log(cfg, f"decisions: {done} of {n_runs} runs decided ({now - t0:.0f} s)")
+
     # each size class of building apart: a small plan's searches do not pay for the largest
     frame, tm = decide(batch, cands, col.floorplans, params, ours=tuple(ours),
-                       primary_set=DEFAULT_SET, size_classes=True)  # fmt: skip
+                       primary_set=DEFAULT_SET, size_classes=True,
+                       progress=progress)  # fmt: skip
     col.tick("decision compile", tm["compile_s"])
     col.tick("decision run", tm["run_s"])
     parts = [frame, *col.mcl]

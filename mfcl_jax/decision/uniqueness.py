@@ -155,7 +155,6 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     best = A[i]
     # judged where the robot is now: the same answer is within the line a commit is judged by
     x_now = h.X[k]
-
     lc = jnp.where(ok & _outside(A, best, x_now, u), L, -jnp.inf)
     # the candidates climb into A* from its own peak: its edge is searched apart
     e, le = edge(best, x_now, pe, fields, u)

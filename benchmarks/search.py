@@ -10,7 +10,8 @@ the plan's grid). The fit runs the lane's polish rounds (``UniqueParams.polish``
 side has it: since ``ff373ca`` a first round of 0.3 m / 3 deg before the three of
 ``path_llr.REFINE_STEPS``), so against ``ff373ca`` its ratio is that round's cost.
 Where the side has it, the edge of the best placement's own peak (``uniqueness.edge``: 12
-placements just past its 1 m / 5 deg line, each fitted while it stays outside) is timed too.
+placements just past its 1 m / 5 deg line evaluated, the best 3 fitted while they stay
+outside it) is timed too.
 Buildings: the stand-in ``three_rooms``, the Office_A IFC storey and the Willow Garage map
 (the benchmark's largest grid).
 
@@ -85,7 +86,7 @@ U = uniqueness.DEFAULT_UNIQUE
 kw = dict(steps=U.polish) if hasattr(U, "polish") else {}
 fit = jax.jit(lambda c: jax.vmap(lambda a: path_llr.refine(a, pe, fields, U.llr, **kw))(c))
 kernels = [("rival search", search, (ev_p, ev_o, ev_m, X)), ("path fit x16", fit, (cand,))]
-if hasattr(uniqueness, "edge"):  # the edge of A*'s own peak: 12 fits that stay outside it
+if hasattr(uniqueness, "edge"):  # the edge of A*'s own peak: 3 fits that stay outside it
     edge = jax.jit(lambda a, x: uniqueness.edge(a, x, pe, fields, U))
     kernels.append(("edge of the peak", edge, (cand[0], X[-1])))
 out = {}

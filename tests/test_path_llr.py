@@ -131,3 +131,25 @@ def test_the_uniqueness_tests_edge_is_the_best_placement_just_past_its_line(scen
     a, _ = refine(ring[np.argmax(L_ring)], pe, fields, steps=u.polish)
     fxy, fth = judged(a)
     assert fxy <= 1.0 and fth <= 5.0, (fxy, fth)
+
+
+def test_the_uniqueness_fit_fits_the_admissible_candidates_only_block_by_block(scene):
+    """``uniqueness.fit`` packs the admissible candidates first and fits them in blocks
+    (here of 3, so 7 admissible ones take three blocks): each gets the fit it would get alone,
+    the inadmissible ones keep their placement and ``L = -inf``."""
+    from dataclasses import replace
+
+    u = replace(U.DEFAULT_UNIQUE, fit_block=3)
+    fields = scene[1]
+    pe = _evidence(scene, list(range(8)))
+    rng = np.random.default_rng(1)
+    cand = (rng.uniform(-1, 1, (10, 3)) * [0.6, 0.6, 0.1]).astype(np.float32)
+    ok = np.array([1, 0, 1, 1, 0, 1, 1, 0, 1, 1], bool)
+    A, L = jax.jit(U.fit, static_argnames="u")(cand, ok, pe, fields, u=u)
+    A, L = np.asarray(A), np.asarray(L)
+    assert np.all(np.isneginf(L[~ok])) and np.array_equal(A[~ok], cand[~ok])
+    one = jax.jit(jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish)))
+    A1, L1 = (np.asarray(x) for x in one(cand[ok]))
+    np.testing.assert_allclose(L[ok], L1, atol=1e-4)
+    np.testing.assert_allclose(A[ok], A1, atol=1e-5)
+    assert np.all(L[ok] > -np.inf) and not np.allclose(A[ok], cand[ok])

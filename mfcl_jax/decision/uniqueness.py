@@ -43,7 +43,7 @@ from mfcl_jax.decision import gate, rivals
 from mfcl_jax.frontend import path_llr
 from mfcl_jax.frontend.path_llr import LLRParams
 
-__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "edge", "skipped"]
+__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "fit", "edge", "skipped"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,10 @@ class UniqueParams:
     n_newest: int = 3  # best registrations of the newest window
     max_tests: int = 8  # tests per odometry segment (the count rule takes over after)
     n_edge: int = 3  # placements of the rim around A* fitted (its best by L): its edge
+    # candidates fitted at once: the admissible ones are packed first and fitted in blocks of
+    # this many until none is left (the probe's alias slots, a few hundred in a plan of many
+    # congruent rooms, are mostly inadmissible: fitting every slot cost 9 in 10 of a test)
+    fit_block: int = 32
     llr: LLRParams = LLRParams()
     # the fit's rounds of 27 poses, (m, deg): a first round of 0.3 m / 3 deg reaches a peak
     # up to about 0.6 m and 6 deg from a candidate, where a competitor narrower than the
@@ -128,6 +132,34 @@ def edge(best, x_now, pe, fields, u: UniqueParams = DEFAULT_UNIQUE):
     return R[i], L[i]
 
 
+def fit(cand, ok, pe, fields, u: UniqueParams = DEFAULT_UNIQUE):
+    """Each admissible candidate ``cand (N, 3)`` fitted to the path (``path_llr.refine``,
+    ``u.polish``) and its ``L``; the others are returned as they are, with ``L = -inf``.
+
+    Only the admissible ones are fitted: packed first, in blocks of ``u.fit_block`` while any
+    is left (one block in the common case).
+    """
+    n = cand.shape[0]
+    b = min(u.fit_block, n)
+    n_pad = -(-n // b) * b
+    order = jnp.argsort(~ok, stable=True)  # admissible first, in their order
+    c = jnp.zeros((n_pad, 3), cand.dtype).at[:n].set(cand[order])
+    n_ok = jnp.sum(ok)
+    one = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish))
+
+    def block(carry):
+        i, A, L = carry
+        a, l_ = one(jax.lax.dynamic_slice_in_dim(c, i * b, b))
+        A = jax.lax.dynamic_update_slice_in_dim(A, a, i * b, 0)
+        return i + 1, A, jax.lax.dynamic_update_slice_in_dim(L, l_, i * b, 0)
+
+    L0 = jnp.full((n_pad,), -jnp.inf, jnp.float32)
+    _, A, L = jax.lax.while_loop(lambda x: x[0] * b < n_ok, block, (0, c, L0))
+    A = jnp.zeros_like(cand).at[order].set(A[:n])
+    L = jnp.full((n,), -jnp.inf, L.dtype).at[order].set(L[:n])
+    return jnp.where(ok[:, None], A, cand), jnp.where(ok, L, -jnp.inf)
+
+
 def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, champion,
                champion_ok, winner_b1, tau_c, delta_xy, delta_theta,
                u: UniqueParams = DEFAULT_UNIQUE) -> UniqStats:  # fmt: skip
@@ -149,8 +181,7 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     cand = jnp.concatenate([found, Hk[top], t_star[None], aliases]).astype(jnp.float32)
     ok = jnp.concatenate([found_ok, mk[top], jnp.ones(1, bool), aliases_ok])
     pe = path_llr.path_evidence(h.ev_points, h.ev_origins, h.ev_mask, h.X, path.dist, u.llr)
-    A, L = jax.vmap(lambda a: path_llr.refine(a, pe, fields, u.llr, u.polish))(cand)
-    L = jnp.where(ok, L, -jnp.inf)
+    A, L = fit(cand, ok, pe, fields, u)
     i = jnp.argmax(L)
     best = A[i]
     # judged where the robot is now: the same answer is within the line a commit is judged by

@@ -143,15 +143,19 @@ def risk_distance_figure(overall: pd.DataFrame):
 def fault_figure(table: pd.DataFrame, axis: str):
     """False-commit rate and coverage against the level of one fault axis, per policy."""
     levels = [str(v) for v in FAULTS[axis]]
+    # the levels at evenly spaced positions, labelled (strings as x data make matplotlib log a
+    # line per call about numbers read as categories)
+    x = np.arange(len(levels))
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.0))
     for pol, g in table.groupby("policy", sort=False):
         g = g.set_index("level").reindex(levels)
         st = STYLE.get(pol, {})
-        a1.plot(levels, g["n_false"] / g["runs"], label=pol, **st)
-        a2.plot(levels, g["n_covered"] / g["identifiable"].where(g["identifiable"] > 0), **st)
+        a1.plot(x, g["n_false"] / g["runs"], label=pol, **st)
+        a2.plot(x, g["n_covered"] / g["identifiable"].where(g["identifiable"] > 0), **st)
     a1.set_ylabel("runs with a false commit / runs")
     a2.set_ylabel("correct commits / identifiable runs")
     for a in (a1, a2):
+        a.set_xticks(x, levels)
         a.set_xlabel(axis)
         a.grid(alpha=0.3)
     a1.legend(fontsize=8, ncol=2)

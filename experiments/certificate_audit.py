@@ -35,8 +35,8 @@ import jax
 import numpy as np
 import pandas as pd
 
-LANES = {"ours_unique": 1e-3, "ours_unique_a2": 1e-2, "ours_unique_a4": 1e-4,
-         "ours_unique_a6": 1e-6}  # fmt: skip
+LANES = {"ours_unique": 1e-3, "ours_unique_a1": 1e-1, "ours_unique_a2": 1e-2,
+         "ours_unique_a4": 1e-4, "ours_unique_a6": 1e-6}  # fmt: skip
 
 
 def tests_of(windows: pd.DataFrame, lanes) -> pd.DataFrame:

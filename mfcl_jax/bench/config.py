@@ -51,10 +51,11 @@ FAULTS = {
     "plan": ("no_doors", "rooms_only"),  # the plan without door features; rooms only
 }
 # every policy is run unless ``policies=`` says otherwise; the ``ours_unique*`` lanes are the
-# uniqueness test at four error rates (issue 28's trade-off of risk against metres)
+# uniqueness test at five error rates (issue 28's trade-off of risk against metres)
 POLICIES = (
     "ours",
     "ours_unique",
+    "ours_unique_a1",
     "ours_unique_a2",
     "ours_unique_a4",
     "ours_unique_a6",

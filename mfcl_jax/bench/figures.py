@@ -36,6 +36,7 @@ STYLE = {
     "gate_only": dict(color="tab:brown", marker="X"),
     "mcl": dict(color="tab:blue", marker="*", lw=2.0),
     "ours_unique": dict(color="tab:pink", marker="o", ls="-."),
+    "ours_unique_a1": dict(color="tab:pink", marker="v", ls=":"),
     "ours_unique_a2": dict(color="tab:pink", marker="<", ls=":"),
     "ours_unique_a4": dict(color="tab:pink", marker=">", ls=":"),
     "ours_unique_a6": dict(color="tab:pink", marker="^", ls=":"),

@@ -8,7 +8,8 @@ explains what I have seen"; this module checks that statement, with a stated err
    (``frontend.path_search``: exhaustive over headings at 5 deg and translations on a coarse
    cell of 0.4-0.5 m, then polished), the newest window's best registrations, the consensus
    winner ``T*`` and the probe's aliases of it (the building's known symmetries);
-2. each is fitted to the path under the observation model (``path_llr.refine``, a first
+2. each admissible one (the probe's aliases the gate rejects are not candidates; ``fit``) is
+   fitted to the path under the observation model (``path_llr.refine``, a first
    round of 0.3 m / 3 deg steps, then the fit's own rounds to 1.5 cm / 0.15 deg), and the best
    ``A*`` is compared with the best candidate outside its neighbourhood (farther than 1 m or
    5 deg, the line a commit is judged by): ``llr = L(A*) - L(competitor)``. A candidate

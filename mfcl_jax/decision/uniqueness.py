@@ -138,7 +138,7 @@ def fit(cand, ok, pe, fields, u: UniqueParams = DEFAULT_UNIQUE):
     ``u.polish``) and its ``L``; the others are returned as they are, with ``L = -inf``.
 
     Only the admissible ones are fitted: packed first, in blocks of ``u.fit_block`` while any
-    is left (one block unless the probe admits many aliases: 2-3 in Office_A).
+    is left (one block unless the probe admits many aliases: 2.4 on average in Office_A).
     """
     n = cand.shape[0]
     b = min(u.fit_block, n)

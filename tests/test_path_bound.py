@@ -1,7 +1,9 @@
 """The branch and bound over every placement of the path (``frontend.path_bound``): its cell
 bound is never below the log-likelihood of a placement inside the cell, it finds the congruent
-copy of a room that explains a walk inside it, and it certifies a walk whose rooms differ."""
+copy of a room that explains a walk inside it, and it certifies a walk whose rooms differ. The
+bound holds for a plan (outside = walls) and for an occupancy map (outside unobserved, 0.5)."""
 
+import dataclasses
 import math
 
 import jax
@@ -11,11 +13,13 @@ from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax.decision import rivals
 from mfcl_jax.frontend import path_bound as pb
+from mfcl_jax.floorplan.raster import UNOBSERVED
 from mfcl_jax.frontend import path_llr
 
 
-def _case(fp, points, n_scans=8):
-    fields = rivals.rival_fields(fp)
+def _case(fp, points, n_scans=8, outside=1.0):
+    r = dataclasses.replace(fp.rasterize(), outside=np.float32(outside))
+    fields = rivals.rival_fields(r)
     traj = walk(points)
     ks = np.linspace(0, len(traj) - 1, n_scans).round().astype(int)
     pts, org, msk = evidence_at(fp, traj[ks])
@@ -25,20 +29,28 @@ def _case(fp, points, n_scans=8):
     return fields, pb.bound_fields(fields), pe, traj[-1]
 
 
+DISTINCT = [[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5]]
+
+
 @pytest.fixture(scope="module")
 def distinct():
     fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))  # rooms of different lengths
-    return _case(fp, [[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5]])
+    return _case(fp, DISTINCT)
 
 
-def test_the_bound_of_a_cell_is_never_below_a_placement_inside_it(distinct):
-    fields, bf, pe, _ = distinct
+@pytest.mark.parametrize("outside", [1.0, UNOBSERVED])
+def test_the_bound_of_a_cell_is_never_below_a_placement_inside_it(distinct, outside):
+    fields, bf, pe, _ = (
+        distinct if outside == 1.0
+        else _case(row_of_rooms(widths=(PITCH, 9.0, 5.5)), DISTINCT, outside=outside)
+    )  # fmt: skip
+    assert float(fields.outside) == outside and np.any(np.asarray(fields.bad) == outside)
     pts, pw = np.asarray(pe.pts, np.float64), np.asarray(pe.pw, np.float64)
     free, fw = np.asarray(pe.free, np.float64), np.asarray(pe.fw, np.float64)
     c = (pts[pw > 0] * pw[pw > 0, None]).sum(0) / pw[pw > 0].sum()
     rng = np.random.default_rng(0)
     score = jax.jit(jax.vmap(lambda a: path_llr.log_likelihood(a, pe, fields)))
-    consts = (bf.capped, bf.to_free, bf.bad, np.asarray(bf.origin, np.float32),
+    consts = (bf.capped, bf.to_free, bf.bad, np.float32(bf.outside), np.asarray(bf.origin, np.float32),
               np.float32(bf.res), np.float32(bf.cap), np.float32(0.15), np.float32(0.1),
               np.float32(0.9))  # fmt: skip
     tight = []

@@ -211,7 +211,7 @@ def decision_maps(
 
     fp = None if isinstance(source, Rasters) else source
     sdf, pen = verify.plan_fields(fp, r, CERT_SIGMA_FREE)
-    sdf4, pen4 = verify.stack4(sdf, verify.FAR), verify.stack4(pen, 1.0)
+    sdf4, pen4 = verify.stack4(sdf, verify.FAR), verify.stack4(pen, float(r.outside))
     return DecisionMaps(origin, label, adj, sym, sdf4, pen4, float(r.res))
 
 
@@ -257,7 +257,9 @@ def pad_maps(
     from mfcl_jax.frontend.verify import FAR
 
     sdf4 = np.pad(np.asarray(m.sdf4), pad4, constant_values=FAR)
-    pen4 = np.pad(np.asarray(m.pen4), pad4, constant_values=1.0)
+    # off the grid the penalty is the plan's outside, the fill stack4 put past the last cell
+    pen4 = np.asarray(m.pen4)
+    pen4 = np.pad(pen4, pad4, constant_values=float(pen4[-1, -1, 3]))
     return DecisionMaps(np.asarray(m.origin), label, adj, sym, sdf4, pen4, m.res)
 
 

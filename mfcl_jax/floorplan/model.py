@@ -80,6 +80,9 @@ class Floorplan:
             their precision (``mfcl_jax.floorplan.origin``).
         walls_derived: True when the plan came with rooms only and its walls are the rooms'
             free boundaries (``passages.walls_from_rooms``).
+        outside_unknown: True for an occupancy map: what lies outside its rooms and walls was
+            never observed (unknown), which is no evidence of a wall; False for a plan,
+            whose outside is outside the building (``raster.UNOBSERVED``).
     """
 
     walls: np.ndarray
@@ -91,6 +94,7 @@ class Floorplan:
     source: str = "<memory>"
     offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     walls_derived: bool = False
+    outside_unknown: bool = False
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -280,6 +284,8 @@ class Floorplan:
             name=self.name,
             source=self.source,
             offset=self.offset,
+            walls_derived=self.walls_derived,
+            outside_unknown=self.outside_unknown,
         )
 
     def rasterize(self, res: float = 0.10, margin: float = 1.0):

@@ -64,6 +64,7 @@ def shift_plan(fp: Floorplan, shift, decimals: int | None = None) -> Floorplan:
         source=fp.source,
         offset=fp.offset + shift,
         walls_derived=fp.walls_derived,  # still the rooms' walls: rooms join across them
+        outside_unknown=fp.outside_unknown,
     )
 
 

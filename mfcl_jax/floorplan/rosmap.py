@@ -124,6 +124,7 @@ def load_rosmap(
         wall_polygons=tuple(to_world(w) for w in walls),
         name=path.stem,
         source=str(path),
+        outside_unknown=True,  # unknown cells: never observed, not known to be outdoors
     )
 
 

@@ -102,7 +102,8 @@ class BoundFields:
 
     capped: np.ndarray  # (H, W) min(distance to a wall, cap), 1-Lipschitz with cap outside
     to_free: np.ndarray  # (H, W) distance from each node to the nearest free node (m)
-    bad: np.ndarray  # (H, W) the obstacle field (1 in walls and outside the building)
+    bad: np.ndarray  # (H, W) the obstacle field (``PlanFields.bad``)
+    outside: float  # the obstacle field off the grid
     origin: np.ndarray  # (2,)
     res: float
     cap: float
@@ -126,17 +127,25 @@ def bound_fields(fields: PlanFields) -> BoundFields:
     cap = float(min(1.0, border.min() - res))
     if cap <= 0:
         raise ValueError(f"path_bound: walls on the plan grid's border (cap {cap:.2f} m)")
-    free = np.asarray(fields.bad) < 0.5
+    free = ~_solid(fields.bad)
     to_free = (ndimage.distance_transform_edt(~free) * res if free.any()
                else np.full(dist.shape, 1e6))  # fmt: skip
     return BoundFields(
         capped=np.minimum(edt, cap).astype(np.float32),
         to_free=to_free.astype(np.float32),
         bad=np.asarray(fields.bad, np.float32),
+        outside=float(fields.outside),
         origin=np.asarray(fields.origin, np.float64),
         res=res,
         cap=cap,
     )
+
+
+def _solid(bad) -> np.ndarray:
+    """The nodes whose obstacle field is 1 (walls, a plan's outside): only a sample whose
+    every neighbour is solid surely pays the whole ``log(1 - z_block)``; nodes of an occupancy
+    map's unobserved outside (0.5) count as not solid, which keeps every bound an upper bound."""
+    return np.asarray(bad) >= 1.0 - 1e-6
 
 
 def _nearest(field, origin, res, xy):
@@ -151,8 +160,8 @@ def _nearest(field, origin, res, xy):
 
 
 @jax.jit
-def cell_bounds(cells, h, delta, pq, pw, pr, fq, fw, fr, capped, to_free, bad, origin, res,
-                cap, sigma, z_rand, z_block):  # fmt: skip
+def cell_bounds(cells, h, delta, pq, pw, pr, fq, fw, fr, capped, to_free, bad, outside, origin,
+                res, cap, sigma, z_rand, z_block):  # fmt: skip
     """Upper bounds of ``L`` over cells ``(N, 3)`` (``u0x, u0y, theta0``) of half-side ``h``
     and half-width ``delta``; ``pq, pw, pr``: voxel centres ``(M, 2)`` of the centred
     returns, their weights and half-diagonals; ``fq, fw, fr``: the same for free samples."""
@@ -174,7 +183,7 @@ def cell_bounds(cells, h, delta, pq, pw, pr, fq, fw, fr, capped, to_free, bad, o
     xf = place(fq)
     ev, en = _nearest(to_free, origin, res, xf)
     # the obstacle field's bilinear reading moves by at most sqrt(2) / res per metre
-    b = jnp.maximum(sample_field(bad, origin, res, xf, 1.0) - SQ2 * rho_f / res, 0.0)
+    b = jnp.maximum(sample_field(bad, origin, res, xf, outside) - SQ2 * rho_f / res, 0.0)
     b = jnp.where(ev - en > rho_f + SQ2 * res, 1.0, jnp.minimum(b, 1.0))
     return ub + jnp.sum(fw * jnp.log(1.0 - z_block * b), axis=1)
 
@@ -267,7 +276,7 @@ def _level_a(pts_c, pw, free_c, fw, bf: BoundFields, radius, tau, p: BoundParams
     # radius off the grid leave every sample off it (there ``L`` is its least value)
     m = int(math.ceil((2 * radius + 4 * g) / bf.res))
     E = np.pad(bf.capped, m, constant_values=bf.cap)
-    bad = np.pad(np.asarray(bf.bad) >= 0.5, m, constant_values=True)
+    bad = np.pad(_solid(bf.bad), m, constant_values=bool(_solid(bf.outside)))
     T = ndimage.distance_transform_edt(bad) * bf.res if (~bad).any() else np.full(bad.shape, 1e6)
     E, T = E[::2, ::2], T[::2, ::2]
     z0 = bf.origin - m * bf.res + 0.5 * bf.res  # node (0, 0) of the strided grid
@@ -379,7 +388,7 @@ def certify(pe: PathEvidence, fields: PlanFields, bf: BoundFields, a_star, x_now
     if hit is not None:
         return done("competitor", "", total, 1, *hit)
     f32 = jnp.float32
-    consts = (jnp.asarray(bf.capped), jnp.asarray(bf.to_free), jnp.asarray(bf.bad),
+    consts = (jnp.asarray(bf.capped), jnp.asarray(bf.to_free), jnp.asarray(bf.bad), f32(bf.outside),
               jnp.asarray(bf.origin, f32), f32(bf.res), f32(bf.cap), f32(llr.sigma),
               f32(llr.z_rand), f32(llr.z_block))  # fmt: skip
 

@@ -1,7 +1,8 @@
 """The plan as the path search reads it: its settings, its fields and their bilinear lookup.
 
 ``plan_fields`` turns the floor plan's rasters into a wall-proximity field ``exp(-d^2 / 2
-sigma^2)`` and an obstacle field (1 in walls and outside the building), fine for polishing and
+sigma^2)`` and an obstacle field (the occupancy the path's free samples meet: 1 in walls, 0 in
+the footprint, ``Rasters.outside`` outside it and off the grid), fine for polishing and
 block-reduced to a coarse cell for the FFT correlation (``path_search``); ``sample_field``
 reads a field at points. Placements are evaluated on the same fields (``placements``).
 """
@@ -42,9 +43,10 @@ class PlanFields:
         origin: ``(2,)`` fine grid lower-left corner (m); res: fine cell (m, static).
         dist: ``(H, W)`` distance to the nearest wall solid (m), for ray marching.
         hit: ``(H, W)`` fine wall-proximity field at ``sigma_fine``.
-        bad: ``(H, W)`` fine obstacle field (1 in walls and outside the building).
+        bad: ``(H, W)`` fine obstacle field (1 in walls, ``outside`` outside the footprint).
         c_hit, c_bad: ``(Hc, Wc)`` the coarse fields; c_res: their cell (m, static): the fine
             cell times the block factor nearest to ``coarse_res``.
+        outside: ``()`` the obstacle field off the grid (``Rasters.outside``).
     """
 
     origin: jax.Array
@@ -53,13 +55,14 @@ class PlanFields:
     bad: jax.Array
     c_hit: jax.Array
     c_bad: jax.Array
+    outside: jax.Array
     res: float = 0.10
     c_res: float = 0.40
 
 
 jax.tree_util.register_dataclass(
     PlanFields,
-    data_fields=["origin", "dist", "hit", "bad", "c_hit", "c_bad"],
+    data_fields=["origin", "dist", "hit", "bad", "c_hit", "c_bad", "outside"],
     meta_fields=["res", "c_res"],
 )
 
@@ -68,13 +71,14 @@ def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> P
     """``PlanFields`` from ``Rasters`` (host); ``shape`` pads the fine grid to a bucket."""
     r = rasters.to_numpy()
     dist = np.asarray(r.dist, np.float64)
-    bad = (np.asarray(r.wall) | ~np.asarray(r.inside)).astype(np.float64)
+    out = float(r.outside)
+    bad = np.where(np.asarray(r.wall), 1.0, np.where(np.asarray(r.inside), 0.0, out))
     h, w = dist.shape
     H, W = shape or (h, w)
     f = max(1, int(round(params.coarse_res / r.res)))
     H, W = -(-H // f) * f, -(-W // f) * f
     dist = np.pad(dist, ((0, H - h), (0, W - w)), constant_values=10.0)
-    bad = np.pad(bad, ((0, H - h), (0, W - w)), constant_values=1.0)
+    bad = np.pad(bad, ((0, H - h), (0, W - w)), constant_values=out)
     c_d = dist.reshape(H // f, f, W // f, f).min(axis=(1, 3))
     c_b = bad.reshape(H // f, f, W // f, f).mean(axis=(1, 3))
     return PlanFields(
@@ -84,6 +88,7 @@ def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> P
         bad=bad.astype(np.float32),
         c_hit=np.exp(-(c_d**2) / (2 * params.sigma_coarse**2)).astype(np.float32),
         c_bad=c_b.astype(np.float32),
+        outside=np.float32(out),
         res=float(r.res),
         c_res=float(r.res * f),
     )

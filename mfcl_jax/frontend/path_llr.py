@@ -6,9 +6,11 @@ The observation model, fixed for every building:
   ``(1 - z_rand) exp(-d^2 / 2 sigma^2) + z_rand``: a likelihood field whose floor ``z_rand``
   stands for clutter and as-built changes the plan does not hold (a return off the plan costs
   at most ``log z_rand``, whatever the placement);
-* a free-space sample (along a ray, or the sensor itself) in a wall or outside the building
-  has likelihood ``1 - z_block``, elsewhere 1: a placement under which the robot saw through
-  a wall, or stood in one, loses;
+* a free-space sample (along a ray, or the sensor itself) in a cell of occupancy ``b`` has
+  likelihood ``1 - z_block b``: ``b`` is 1 in a wall and outside a plan's building, 0 in its
+  rooms, so a placement under which the robot saw through a wall, or stood in one, loses;
+  an occupancy map's never-observed outside holds ``b = 0.5`` (``raster.UNOBSERVED``): a path
+  through a stretch the map lacks pays for not being explained, not for crossing walls;
 * the returns of one scan are not independent (one surface, many beams), nor are the scans of
   one metre of travel (one view, seen again): each scan contributes the MEAN log-likelihood of
   its returns and of its free samples, weighted by the metres of travel per scan, so the
@@ -41,7 +43,7 @@ class LLRParams:
 
     sigma: float = 0.15  # m: wall-hit kernel
     z_rand: float = 0.1  # floor of a return's likelihood
-    z_block: float = 0.9  # a free sample in a wall or outside keeps 1 - z_block
+    z_block: float = 0.9  # a free sample in a wall or outside a plan keeps 1 - z_block
     metre: float = 1.0  # m of travel counted as one observation
     ray_fracs: tuple = (0.3, 0.6, 0.85)  # free samples along each evidence ray
     max_points: int = 2048
@@ -129,7 +131,7 @@ def log_likelihood(a, pe: PathEvidence, fields: PlanFields, p: LLRParams = LLRPa
     """``L(a)``: the path's log-likelihood under the placement ``a (3,)`` (module docstring)."""
     d = sample_field(fields.dist, fields.origin, fields.res, se2.apply(a, pe.pts), 10.0)
     f = jnp.log((1.0 - p.z_rand) * jnp.exp(-d * d / (2.0 * p.sigma**2)) + p.z_rand)
-    b = sample_field(fields.bad, fields.origin, fields.res, se2.apply(a, pe.free), 1.0)
+    b = sample_field(fields.bad, fields.origin, fields.res, se2.apply(a, pe.free), fields.outside)
     g = jnp.log(1.0 - p.z_block * jnp.clip(b, 0.0, 1.0))
     return jnp.sum(pe.pw * f) + jnp.sum(pe.fw * g)
 

@@ -56,7 +56,7 @@ __all__ = [
 def _score(g, pts, pok, frees, fok, fields, lam):
     """Fine score of placement ``g (3,)``: mean hit of points minus ``lam`` mean bad."""
     hit = sample_field(fields.hit, fields.origin, fields.res, se2.apply(g, pts), 0.0)
-    bad = sample_field(fields.bad, fields.origin, fields.res, se2.apply(g, frees), 1.0)
+    bad = sample_field(fields.bad, fields.origin, fields.res, se2.apply(g, frees), fields.outside)
     # sums as dot products with the masks: XLA:CPU runs a reduction fused with the lookups'
     # gathers as a scalar loop, a dot it does not fuse (3.4x faster on the polish's batches)
     mh = jnp.dot(jnp.where(pok, hit, 0.0), pok.astype(hit.dtype)) / jnp.maximum(

@@ -62,7 +62,7 @@ def evaluate_placements(g, scan_pts, scan_ok, sensor, fields: PlanFields, margin
         n = jnp.maximum(jnp.sum(scan_ok, -1), 1).astype(jnp.float32)
         mh = jnp.sum(jnp.where(scan_ok, h, 0.0), -1) / n
         th = jnp.sum(_through(o, p, scan_ok, fields, margin, steps), -1).astype(n.dtype) / n
-        pb = sample_field(fields.bad, fields.origin, fields.res, o[:, 0], 1.0)
+        pb = sample_field(fields.bad, fields.origin, fields.res, o[:, 0], fields.outside)
         return mh, th, pb
 
     return jax.lax.map(one, g)

@@ -135,7 +135,7 @@ def build_features(
     return FloorplanFeatures(
         rasters=rasters.to_jax(),
         sdf4=jnp.asarray(verify.stack4(sdf, verify.FAR)),
-        pen4=jnp.asarray(verify.stack4(pen, 1.0)),
+        pen4=jnp.asarray(verify.stack4(pen, float(rasters.outside))),
         corner_pos=jnp.asarray(pos, jnp.float32).reshape(-1, 2),
         corner_a1=jnp.asarray(a1, jnp.float32).reshape(-1),
         corner_a2=jnp.asarray(a2, jnp.float32).reshape(-1),

@@ -7,11 +7,12 @@ metres short of the point:
 
     s(Y; sigma) = 1/|P| sum_k exp(-d(Y p_k)^2 / (2 sigma^2))
                 - lambda_free / |Q| sum_l pen(Y q_l),
-    pen = max(exp(-max(d, 0)^2 / (2 sigma_free^2)), 1 - inside)
+    pen = max(exp(-max(d, 0)^2 / (2 sigma_free^2)), outside * (1 - inside))
 
 The first term (in [0, 1]) rewards occupied points that land on plan wall *surfaces*. The second
 (in [0, lambda_free]) penalises space the LiDAR saw through that the plan calls wall or outside
-the building. Points occupied in the submap but free in the plan (furniture, as-built additions)
+the building (``outside`` = 1; an occupancy map's never-observed outside counts half,
+``Rasters.outside``). Points occupied in the submap but free in the plan (furniture, as-built additions)
 only miss the reward; they are never penalised.
 
 Both fields are sampled bilinearly, so ``s`` is continuous and piecewise smooth in ``Y`` and
@@ -111,7 +112,7 @@ def plan_fields(fp, rasters, sigma_free: float, band: float = 0.6):
     sdf = np.minimum(sdf, FAR)
     pen = np.maximum(
         np.exp(-0.5 * (np.maximum(sdf, 0.0) / sigma_free) ** 2),
-        1.0 - np.asarray(rasters.inside, float),
+        float(rasters.outside) * (1.0 - np.asarray(rasters.inside, float)),
     )
     return sdf.astype(np.float32), pen.astype(np.float32)
 

@@ -12,8 +12,8 @@ import pytest
 from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax.decision import rivals
-from mfcl_jax.frontend import path_bound as pb
 from mfcl_jax.floorplan.raster import UNOBSERVED
+from mfcl_jax.frontend import path_bound as pb
 from mfcl_jax.frontend import path_llr
 
 
@@ -50,9 +50,9 @@ def test_the_bound_of_a_cell_is_never_below_a_placement_inside_it(distinct, outs
     c = (pts[pw > 0] * pw[pw > 0, None]).sum(0) / pw[pw > 0].sum()
     rng = np.random.default_rng(0)
     score = jax.jit(jax.vmap(lambda a: path_llr.log_likelihood(a, pe, fields)))
-    consts = (bf.capped, bf.to_free, bf.bad, np.float32(bf.outside), np.asarray(bf.origin, np.float32),
-              np.float32(bf.res), np.float32(bf.cap), np.float32(0.15), np.float32(0.1),
-              np.float32(0.9))  # fmt: skip
+    consts = (bf.capped, bf.to_free, bf.bad, np.float32(bf.outside),
+              np.asarray(bf.origin, np.float32), np.float32(bf.res), np.float32(bf.cap),
+              np.float32(0.15), np.float32(0.1), np.float32(0.9))  # fmt: skip
     tight = []
     for h, delta in ((0.4, math.radians(2.0)), (0.1, math.radians(0.5)), (0.02, 0.002)):
         # cells about the truth (u = c, theta = 0), about near misses and anywhere

@@ -85,7 +85,14 @@ class Rasters:
 jax.tree_util.register_dataclass(
     Rasters,
     data_fields=[
-        "origin", "dist", "wall", "room_id", "inside", "adjacency", "room_centroids", "outside"
+        "origin",
+        "dist",
+        "wall",
+        "room_id",
+        "inside",
+        "adjacency",
+        "room_centroids",
+        "outside",
     ],
     meta_fields=["res"],
 )

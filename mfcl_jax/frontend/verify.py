@@ -12,8 +12,8 @@ metres short of the point:
 The first term (in [0, 1]) rewards occupied points that land on plan wall *surfaces*. The second
 (in [0, lambda_free]) penalises space the LiDAR saw through that the plan calls wall or outside
 the building (``outside`` = 1; an occupancy map's never-observed outside counts half,
-``Rasters.outside``). Points occupied in the submap but free in the plan (furniture, as-built additions)
-only miss the reward; they are never penalised.
+``Rasters.outside``). Points occupied in the submap but free in the plan (furniture, as-built
+additions) only miss the reward; they are never penalised.
 
 Both fields are sampled bilinearly, so ``s`` is continuous and piecewise smooth in ``Y`` and
 resolves poses well below the 0.10 m raster cell. The kernel is applied *after* interpolating

@@ -99,6 +99,13 @@ def test_x_crossing_splits_four_ways(tmp_path):
     ends = fp.room_at([(2, 8), (14, 8), (8, 2), (8, 14)])
     assert None not in ends and len(set(ends)) == 4
     assert len(fp.rooms) <= 5 and _connected(fp.adjacency)
+    # the map's outside was never observed: its path fields hold the prior 0.5 there, not 1
+    from mfcl_jax.decision.rivals import rival_fields
+
+    f = rival_fields(fp)
+    corner = f.bad[: int(0.9 / f.res), : int(0.9 / f.res)]  # outside the cross
+    assert fp.outside_unknown and float(f.outside) == 0.5 and np.all(corner == 0.5)
+    assert np.max(f.bad) == 1.0  # walls stay walls
 
 
 def test_long_corridor_is_not_chopped(tmp_path):

@@ -1,4 +1,4 @@
-"""How long the branch and bound over every placement (``frontend.path_bound``) takes:
+"""How long the branch and bound over every placement (``frontend.path_certify``) takes:
 ``python benchmarks/bound.py [--repeats N]`` (about 5 minutes).
 
 For the first walk of three procedural buildings, the path of windows 1..k (k = 3, 6, 9) is
@@ -30,7 +30,7 @@ import pandas as pd
 from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.decision import rivals
-from mfcl_jax.frontend import path_bound, path_llr
+from mfcl_jax.frontend import path_bound, path_certify, path_llr
 from mfcl_jax.sim import SimParams, families
 from mfcl_jax.sources.simulated import simulate
 from mfcl_jax.windows.arrays import evidence_sample
@@ -71,12 +71,12 @@ def main() -> None:
             pe, a, L, x_now = case(rec, w, k, fields)
             tau = L - math.log(100.0)
             t0 = time.perf_counter()
-            r = path_bound.certify(pe, fields, bf, a, x_now, tau)
+            r = path_certify.certify(pe, fields, bf, a, x_now, tau)
             first = time.perf_counter() - t0
             warm = []
             for _ in range(args.repeats):
                 t0 = time.perf_counter()
-                path_bound.certify(pe, fields, bf, a, x_now, tau)
+                path_certify.certify(pe, fields, bf, a, x_now, tau)
                 warm.append(time.perf_counter() - t0)
             rows.append(dict(building=fam, grid="x".join(map(str, bf.capped.shape)), windows=k,
                              metres=round(float(pe.length), 1), outcome=r.outcome,

@@ -9,7 +9,7 @@ audit takes every nominal run of the default benchmark (``results/benchmark/wind
 where a lane commits before ``ours`` does (the commit rests on the test, not on the count of
 windows), rebuilds the path evidence of that window from the recording (the windows and the
 evidence sample the layer reads, the path length by the refined odometry), polishes ``A*``
-under it from the committed pose, and runs the branch and bound (``frontend.path_bound``) over
+under it from the committed pose, and runs the branch and bound (``frontend.path_certify``) over
 every placement outside ``A*``'s neighbourhood for one within ``log(1 / alpha)`` of it:
 
 * ``certified``: none exists (the commit holds under the observation model, whatever the grid);
@@ -102,7 +102,7 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     from mfcl_jax import se2
     from mfcl_jax import windows as W
     from mfcl_jax.decision import rivals
-    from mfcl_jax.frontend import path_bound, path_llr
+    from mfcl_jax.frontend import path_bound, path_certify, path_llr
     from mfcl_jax.windows.arrays import evidence_sample
 
     w = W.cut(rec.seq, W.WindowParams(d_s=6.0))
@@ -124,7 +124,7 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     a, L = path_llr.refine(jnp.asarray(anchor, jnp.float32), pe, fields)
     a, L = np.asarray(a, np.float64), float(L)
     margin = math.log(1.0 / alpha)
-    r = path_bound.certify(pe, fields, bf, a, X[-1], L - margin)
+    r = path_certify.certify(pe, fields, bf, a, X[-1], L - margin)
     out = dict(outcome=r.outcome, why=r.why, L_star=L, margin=margin, cells=r.cells,
                levels=r.levels, seconds=round(r.seconds, 2), metres=length)  # fmt: skip
     # the lane's grid test on this evidence (its search's placements only, and the edge of

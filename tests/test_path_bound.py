@@ -1,4 +1,5 @@
-"""The branch and bound over every placement of the path (``frontend.path_bound``): its cell
+"""The branch and bound over every placement of the path (``frontend.path_bound``,
+``path_certify``): its cell
 bound is never below the log-likelihood of a placement inside the cell, it finds the congruent
 copy of a room that explains a walk inside it, and it certifies a walk whose rooms differ. The
 bound holds for a plan (outside = walls) and for an occupancy map (outside unobserved, 0.5)."""
@@ -14,6 +15,7 @@ from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 from mfcl_jax.decision import rivals
 from mfcl_jax.floorplan.raster import UNOBSERVED
 from mfcl_jax.frontend import path_bound as pb
+from mfcl_jax.frontend import path_certify as pc
 from mfcl_jax.frontend import path_llr
 
 
@@ -62,14 +64,14 @@ def test_the_bound_of_a_cell_is_never_below_a_placement_inside_it(distinct, outs
                              rng.uniform(-math.pi, math.pi, 24)]),
         ]).astype(np.float32)  # fmt: skip
         side = h
-        pq, pwv, pr = pb._voxels(pts - c, pw, side)
-        fq, fwv, fr = pb._voxels(free - c, fw, side)
+        pq, pwv, pr = pb.voxels(pts - c, pw, side)
+        fq, fwv, fr = pb.voxels(free - c, fw, side)
         ub = np.asarray(pb.cell_bounds(centre, np.float32(h), np.float32(delta), pq, pwv, pr,
                                        fq, fwv, fr, *consts))  # fmt: skip
         # placements inside each cell, corners included, in standard form
         d = rng.uniform(-1, 1, (len(centre), 12, 3)) * [h, h, delta]
         d[:, :4] = [[h, h, delta], [-h, h, -delta], [h, -h, -delta], [-h, -h, delta]]
-        std = pb._standard((centre[:, None] + d).reshape(-1, 3), c).astype(np.float32)
+        std = pc._standard((centre[:, None] + d).reshape(-1, 3), c).astype(np.float32)
         L = np.asarray(score(std)).reshape(len(centre), 12).max(1)
         assert np.all(ub >= L - 1e-3), (h, delta, np.min(ub - L))
         tight.extend(ub - L)
@@ -83,7 +85,7 @@ def test_the_search_finds_the_congruent_copy_of_the_room_walked_in():
     fields, bf, pe, x_now = _case(fp, pts, n_scans=6)
     a_star = np.zeros(3)
     L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
-    r = pb.certify(pe, fields, bf, a_star, x_now, L0 - math.log(100.0))
+    r = pc.certify(pe, fields, bf, a_star, x_now, L0 - math.log(100.0))
     assert r.outcome == "competitor", r
     # a whole room away (one of the other two rooms, or the room turned half a turn)
     assert np.hypot(*(r.competitor[:2])) > 3.0 or abs(r.competitor[2]) > 3.0, r.competitor
@@ -93,8 +95,8 @@ def test_the_search_finds_the_congruent_copy_of_the_room_walked_in():
 def test_the_search_certifies_a_walk_through_rooms_that_differ(distinct):
     fields, bf, pe, x_now = distinct
     L0 = float(path_llr.log_likelihood(np.zeros(3, np.float32), pe, fields))
-    r = pb.certify(pe, fields, bf, np.zeros(3), x_now, L0 - math.log(100.0))
+    r = pc.certify(pe, fields, bf, np.zeros(3), x_now, L0 - math.log(100.0))
     assert r.outcome == "certified", r
     # a margin the evidence cannot reach is not certified
-    r = pb.certify(pe, fields, bf, np.zeros(3), x_now, L0 - 1e4)
+    r = pc.certify(pe, fields, bf, np.zeros(3), x_now, L0 - 1e4)
     assert r.outcome == "open", r

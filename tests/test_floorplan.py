@@ -48,6 +48,14 @@ def test_geojson_round_trip(tmp_path):
     r1, r2 = fp.rasterize(), fp2.rasterize()
     assert np.array_equal(r1.room_id, r2.room_id) and np.allclose(r1.dist, r2.dist)
     assert not list(tmp_path.glob(".*tmp"))  # atomic write leaves no temporary file
+    # an occupancy map's never-observed outside survives the round trip; a plan's stays outdoors
+    assert not fp2.outside_unknown and float(r2.outside) == 1.0
+    m = load_geojson(save_geojson(two_rooms(outside_unknown=True), tmp_path / "m.geojson"))
+    assert m.outside_unknown and float(m.rasterize().outside) == 0.5
+    data = json.loads((tmp_path / "m.geojson").read_text())
+    data["outside"] = "space"
+    with pytest.raises(FloorplanError, match="'outside' is 'space'"):
+        floorplan_from_geojson(data, source="m.geojson")
 
 
 def test_rasters():

@@ -106,7 +106,7 @@ def test_a_carmen_log_against_a_plan_of_another_scale_is_refused(tmp_path, capsy
     """``mfcl localize --carmen`` checks the plan's scale against the scans' as a dataset
     folder does (here a plan far smaller than what the scans see)."""
     from mfcl_jax.cli import main
-    from mfcl_jax.floorplan.geojson import save_geojson
+    from mfcl_jax.floorplan.geojson_write import save_geojson
 
     log = tmp_path / "g.log"
     log.write_text("".join(_flaser(1.0 + i, [2.0, 3.0, 4.0] * 60, x=0.1 * i) for i in range(6)))

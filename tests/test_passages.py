@@ -132,7 +132,7 @@ def test_a_georeferenced_rooms_only_plan_keeps_its_rooms_joined_and_says_what_wa
     tmp_path,
 ):
     from mfcl_jax.floorplan import FloorplanWarning
-    from mfcl_jax.floorplan.geojson import save_geojson
+    from mfcl_jax.floorplan.geojson_write import save_geojson
     from mfcl_jax.floorplan.load import load_floorplan
 
     src = tmp_path / "rooms.geojson"

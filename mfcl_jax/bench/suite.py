@@ -62,7 +62,8 @@ def ifc_floorplan(model: str, cache: str | None):
     import hashlib
 
     from mfcl_jax.floorplan import ifc, ifc_rooms, ifc_section
-    from mfcl_jax.floorplan.geojson import load_geojson, save_geojson
+    from mfcl_jax.floorplan.geojson import load_geojson
+    from mfcl_jax.floorplan.geojson_write import save_geojson
     from mfcl_jax.floorplan.load import load_floorplan
 
     file, storey = IFC_MODELS[model]

@@ -9,9 +9,9 @@ from importlib import import_module
 
 _WHERE = {
     "floorplan_from_geojson": "geojson",
-    "floorplan_to_geojson": "geojson",
+    "floorplan_to_geojson": "geojson_write",
     "load_geojson": "geojson",
-    "save_geojson": "geojson",
+    "save_geojson": "geojson_write",
     "load_ifc": "ifc",
     "load_floorplan": "load",
     "Door": "model",

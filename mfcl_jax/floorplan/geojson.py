@@ -14,8 +14,9 @@ names a multi-part room joins the part it touches (the nearest one if it touches
 Doors cannot be guessed from geometry: they need ``kind: door``. Other geometries without
 ``kind`` are an error.
 
-Coordinates are read in float64. Saving writes plan-frame coordinates (``Floorplan.offset``
-added back), so a plan moved to a local origin saves as it was read.
+The collection's optional member ``"outside": "unknown"`` marks a plan whose outside was never
+observed (an occupancy map's, ``Floorplan.outside_unknown``); absent or ``"building"``, the
+outside is outdoors. Coordinates are read in float64. Writing: ``geojson_write``.
 """
 
 from __future__ import annotations
@@ -35,9 +36,8 @@ from mfcl_jax.floorplan.model import (
     FloorplanError,
     Room,
 )
-from mfcl_jax.io.atomic import atomic_write
 
-__all__ = ["load_geojson", "save_geojson", "floorplan_from_geojson", "floorplan_to_geojson"]
+__all__ = ["load_geojson", "floorplan_from_geojson"]
 
 
 def _coords(src, i, feat, shape_desc):
@@ -192,6 +192,11 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
             )
     if not rooms:
         raise FloorplanError(f"{source}: no 'room' features: a floor plan needs named rooms")
+    outside = data.get("outside", "building")
+    if outside not in ("building", "unknown"):
+        raise FloorplanError(
+            f"{source}: 'outside' is {outside!r}, expected 'building' or 'unknown'"
+        )
     return Floorplan(
         walls=np.asarray(walls, float).reshape(-1, 2, 2),
         thickness=np.asarray(thick, float),
@@ -200,6 +205,7 @@ def floorplan_from_geojson(data: dict, source: str = "<geojson>", name: str | No
         wall_polygons=tuple(wall_polys),
         name=name or data.get("name") or Path(str(source)).stem,
         source=str(source),
+        outside_unknown=outside == "unknown",
     )
 
 
@@ -244,58 +250,3 @@ def load_geojson(path) -> Floorplan:
     except json.JSONDecodeError as e:
         raise FloorplanError(f"{path}: not valid JSON ({e})") from None
     return floorplan_from_geojson(data, source=str(path))
-
-
-def _poly_coords(poly: Polygon, off: np.ndarray) -> list:
-    return [(np.asarray(poly.exterior.coords) + off).tolist()] + [
-        (np.asarray(r.coords) + off).tolist() for r in poly.interiors
-    ]
-
-
-def floorplan_to_geojson(fp: Floorplan) -> dict:
-    """The GeoJSON FeatureCollection for a floor plan, in plan-frame coordinates. A plan of
-    rooms only is written as it came, without the walls derived from its rooms (read back,
-    they are derived again; written out, they would read as a plan whose walls are given)."""
-    off = np.asarray(fp.offset, np.float64)
-    feats = []
-    walls = () if fp.walls_derived else zip(fp.walls, fp.thickness, strict=True)
-    for seg, t in walls:
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {"kind": "wall", "thickness": float(t)},
-                "geometry": {"type": "LineString", "coordinates": (seg + off).tolist()},
-            }
-        )
-    for poly in fp.wall_polygons:
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {"kind": "wall"},
-                "geometry": {"type": "Polygon", "coordinates": _poly_coords(poly, off)},
-            }
-        )
-    for r in fp.rooms:
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {"kind": "room", "name": r.name},
-                "geometry": {"type": "Polygon", "coordinates": _poly_coords(r.polygon, off)},
-            }
-        )
-    for d in fp.doors:
-        seg = np.asarray(d.segment, np.float64) + off
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {"kind": "door", "rooms": list(d.rooms)},
-                "geometry": {"type": "LineString", "coordinates": seg.tolist()},
-            }
-        )
-    return {"type": "FeatureCollection", "name": fp.name, "features": feats}
-
-
-def save_geojson(fp: Floorplan, path) -> Path:
-    """Writes a floor plan atomically (a temporary file renamed into place)."""
-    path = atomic_write(path, json.dumps(floorplan_to_geojson(fp), indent=1))
-    return path

@@ -216,7 +216,7 @@ def write_dataset(
         DataError: inconsistent lengths, the folder exists and ``overwrite`` is False, or
             it cannot be written (``atomic.check_output``; nothing is left behind).
     """
-    from mfcl_jax.floorplan.geojson import save_geojson
+    from mfcl_jax.floorplan.geojson_write import save_geojson
 
     folder = Path(folder)
     times = np.asarray(times, float).reshape(-1)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mfcl_jax.floorplan.geojson import save_geojson
+from mfcl_jax.floorplan.geojson_write import save_geojson
 
 __all__ = ["write_family_geojson"]
 

@@ -20,7 +20,8 @@ every placement outside ``A*``'s neighbourhood for one within ``log(1 / alpha)``
 
 Ground truth is read only to say whether the commit was right. Writes ``tests.csv`` (one row
 per test) and ``summary.md`` (pasted into ``docs/benchmark.md`` when written to the default
-folder); 1-90 s per test on two cores, about 20 minutes for the two lanes.
+folder); 1-90 s per test on two cores, about 23 minutes for the two lanes, at a peak of 18 GB
+of memory (run it alone).
 """
 
 from __future__ import annotations

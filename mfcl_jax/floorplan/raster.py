@@ -19,9 +19,9 @@ reads there) is 1. An occupancy map's outside is different: cells never observed
 region the map's author did not scan, not a wall; ``outside`` is then ``UNOBSERVED`` = 0.5, the
 occupancy an unobserved cell of a log-odds grid holds. Measured on the benchmark's held-out log
 maps, which lack some of the buildings' stretches: with outside cells read as walls, a path
-through such a stretch paid ``log(1 - z_block)`` for each free sample there and a wrong place
-in the mapped part explained it 3.5 nats better than every other place (Orebro); read as
-unknown, the true placement is within 2 nats of the best and no place leads by more than 1.2.
+through such a stretch paid ``log(1 - z_block)`` for each free sample there, and a wrong place
+in the mapped part explained it up to 4 nats better than every other place; read as unknown,
+no place more than a metre off leads by more than 2.15 nats (``docs/benchmark.md``).
 """
 
 from __future__ import annotations

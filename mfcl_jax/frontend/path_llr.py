@@ -9,8 +9,8 @@ The observation model, fixed for every building:
 * a free-space sample (along a ray, or the sensor itself) in a cell of occupancy ``b`` has
   likelihood ``1 - z_block b``: ``b`` is 1 in a wall and outside a plan's building, 0 in its
   rooms, so a placement under which the robot saw through a wall, or stood in one, loses;
-  an occupancy map's never-observed outside holds ``b = 0.5`` (``raster.UNOBSERVED``): a path
-  through a stretch the map lacks pays for not being explained, not for crossing walls;
+  an occupancy map's never-observed outside holds ``b = 0.5`` (``raster.UNOBSERVED``): a free
+  sample in a stretch the map lacks costs ``log 0.55``, not the ``log 0.1`` of a wall;
 * the returns of one scan are not independent (one surface, many beams), nor are the scans of
   one metre of travel (one view, seen again): each scan contributes the MEAN log-likelihood of
   its returns and of its free samples, weighted by the metres of travel per scan, so the

@@ -54,7 +54,7 @@ class BoundFields:
     """The plan as the bound reads it (host arrays, the search's grid)."""
 
     capped: np.ndarray  # (H, W) min(distance to a wall, cap), 1-Lipschitz with cap outside
-    to_free: np.ndarray  # (H, W) distance from each node to the nearest free node (m)
+    to_free: np.ndarray  # (H, W) distance from each node to the nearest non-solid node (m)
     bad: np.ndarray  # (H, W) the obstacle field (``PlanFields.bad``)
     outside: float  # the obstacle field off the grid
     origin: np.ndarray  # (2,)

@@ -64,8 +64,9 @@ def main(argv=None) -> int:
         return layer.split(s)[1], jax.tree.map(lambda x: x[0], d)
 
     step = jax.jit(step, donate_argnums=(1,))
-    ev_p, ev_o, ev_m = (np.asarray(x) for x in (wb.evidence.points, wb.evidence.origins,
-                                                wb.evidence.mask))  # fmt: skip
+    ev_p, ev_o, ev_m, end_p, end_m = (np.asarray(x) for x in (
+        wb.evidence.points, wb.evidence.origins, wb.evidence.mask, wb.evidence.end_points,
+        wb.evidence.end_mask))  # fmt: skip
     rows, prev_end = [], -1
     n_kf = len(w.keyframes)
     for n in range(a.windows):
@@ -85,7 +86,7 @@ def main(argv=None) -> int:
             head=np.zeros((0, 3), np.float32), head_mask=np.zeros(0, bool),
             start=np.int32(j0 + cycle * n_kf), ev_points=ev_p[k], ev_origins=ev_o[k],
             ev_mask=ev_m[k], valid=np.bool_(True), last=np.bool_(False),
-            restart=np.bool_(False),
+            restart=np.bool_(False), end_points=end_p[k], end_mask=end_m[k],
         )  # fmt: skip
         c0, t0 = time.process_time(), time.perf_counter()
         memory, d = step(world, memory, ev)

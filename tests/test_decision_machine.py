@@ -180,3 +180,20 @@ def test_a_commit_the_newest_registration_leaves_behind_is_stale():
     out = _track(raw, jnp.asarray(far[:, None, :], jnp.float32), jnp.ones((k, 1)),
                   jnp.ones((k, 1), bool), x, jnp.bool_(True))  # fmt: skip
     assert list(np.asarray(out.state)) == [COMMIT] * k
+
+
+def test_a_commit_the_last_metre_does_not_support_is_left():
+    """``leave_drifted``: a COMMIT lane with a verdict (drifted, unsupported) reports DEFER
+    with it and holds no commit afterwards; a lane without one, or not committing, is
+    unchanged."""
+    states = [COMMIT, COMMIT, DEFER, COMMIT]
+    raw = dataclasses.replace(_raw(states, [A] * 4), reason=jnp.asarray([0, 0, 4, 0], jnp.int32),
+                              has_competitor=jnp.asarray([True, False, True, False]))  # fmt: skip
+    held = machine.Held(jnp.asarray([True, True, False, False]), jnp.asarray([A] * 4, jnp.float32))
+    verdict = jnp.asarray([machine.DRIFTED, 0, machine.UNSUPPORTED, machine.UNSUPPORTED])
+    held2, out = jax.jit(machine.leave_drifted)(held, raw, verdict)
+    assert list(np.asarray(out.state)) == [DEFER, COMMIT, DEFER, DEFER]
+    reasons = [REASONS[int(r)] for r in np.asarray(out.reason)]
+    assert reasons == ["commit drifted", "", "unsaturated", "commit unsupported"]
+    assert list(np.asarray(held2.committed)) == [False, True, False, False]
+    assert list(np.asarray(out.has_competitor)) == [False, False, True, False]

@@ -8,7 +8,7 @@ import pytest
 from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax import se2
-from mfcl_jax.decision import rivals
+from mfcl_jax.decision import drift, rivals
 from mfcl_jax.decision import uniqueness as U
 from mfcl_jax.frontend import path_llr
 
@@ -17,6 +17,7 @@ evidence = jax.jit(path_llr.path_evidence)
 loglik = jax.jit(path_llr.log_likelihood)
 refine = jax.jit(path_llr.refine, static_argnames="steps")
 edge = jax.jit(U.edge)
+verdict = jax.jit(drift.verdict)
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +154,21 @@ def test_the_uniqueness_fit_fits_the_admissible_candidates_only_block_by_block(s
     np.testing.assert_allclose(L[ok], L1, atol=1e-4)
     np.testing.assert_allclose(A[ok], A1, atol=1e-5)
     assert np.all(L[ok] > -np.inf) and not np.allclose(A[ok], cand[ok])
+
+
+def test_the_last_metre_tells_a_turned_pose_from_a_right_one(scene):
+    """A commit's pose 5-6 deg off the truth has drifted (the scans' fit turns back past the
+    3 deg tolerance), one 1.5 deg off or a few cm off has not; placed where its scans touch
+    no wall it is unsupported; too few points: no verdict."""
+    fp, fields, traj, ks, pts, org, msk = scene
+    D, U = drift.DRIFTED, drift.UNSUPPORTED
+    for i in range(0, len(ks), 2):
+        truth = traj[ks[i]]
+        for deg, want in ((0.0, 0), (1.5, 0), (-1.5, 0), (5.0, D), (-6.0, D)):
+            pose = truth + np.array([0.06, -0.04, np.radians(deg)])
+            assert int(verdict(pose, pts[i], msk[i], fields)) == want, (i, deg)
+        outside = truth + np.array([0.0, 40.0, 0.0])  # the plan's walls far away
+        assert int(verdict(outside, pts[i], msk[i], fields)) == U
+    few = msk[0] & (np.cumsum(msk[0]) < drift.MIN_POINTS)
+    assert int(verdict(traj[ks[0]] + np.array([0.0, 0.0, np.radians(6.0)]), pts[0], few,
+                       fields)) == 0  # fmt: skip

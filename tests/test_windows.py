@@ -80,6 +80,15 @@ def test_pack_and_concat_index_runs_and_submaps():
     np.testing.assert_array_equal(cat.building, [0] * len(wa) + [1] * len(wb))
     np.testing.assert_allclose(cat.submaps.X, both.submaps.X)
     assert cat.submaps.points.shape[1] == 0  # concat keeps no points
+    np.testing.assert_array_equal(cat.evidence.end_mask, both.evidence.end_mask)
+    # the end sample: points of the window's last metre (ray origins within END_RADIUS of
+    # its last scan, the frame's origin), as many as there are up to EVIDENCE_POINTS
+    for k, (pts, org) in enumerate(zip(wa.points, wa.origins, strict=True)):
+        near = np.hypot(*org.T) <= W.END_RADIUS
+        m = a.evidence.end_mask[k]
+        assert 0 < m.sum() == min(near.sum(), W.EVIDENCE_POINTS) < near.size
+        got = a.evidence.end_points[k][m].view(np.complex64)
+        assert np.isin(got, pts[near].astype(np.float32).view(np.complex64)).all()
 
 
 def test_the_one_scorer_gives_one_verdict_for_every_consumer(tmp_path):

@@ -81,5 +81,7 @@ def run_inputs(batch, cands, min_step: int = 16, min_head: int = 0) -> RunInputs
         ev_points=np.asarray(ev.points)[idx], ev_origins=np.asarray(ev.origins)[idx],
         ev_mask=np.asarray(ev.mask)[idx] & ok[..., None], valid=ok, last=lasts,
         restart=restarts,
+        end_points=None if ev.end_points is None else np.asarray(ev.end_points)[idx],
+        end_mask=None if ev.end_mask is None else np.asarray(ev.end_mask)[idx] & ok[..., None],
     )  # fmt: skip
     return RunInputs(evw, n_windows, seg_w, seg_t)

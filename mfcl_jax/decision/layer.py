@@ -10,7 +10,9 @@ counted), extend the path and every kept candidate's gate walk by the new keyfra
 window, then per core mode (gate on/off, symmetry set) the shared core (``rule.core``), the
 certification where some lane needs it (``rule.needs_certificate``, through ``sparse_cond``:
 a batch pays only for the windows that need one), each lane's rule (``rule.finish``) and
-commit machine (``machine.step``), and the baselines (``baselines.step``). Where the primary
+commit machine (``machine.step``), the check of every reported commit against the window's
+last metre of scans (``drift``; off where ``init`` has no plan fields or the window no end
+sample), and the baselines (``baselines.step``). Where the primary
 lane is about to enter COMMIT (and its run has searches left) the path is searched for rivals
 (``rivals.search``) and the window is decided again with them.
 
@@ -25,7 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import baselines, certify, gate, machine, rivals, rule, uniqueness
+from mfcl_jax.decision import baselines, certify, drift, gate, machine, rivals, rule, uniqueness
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import (
     Caps,
@@ -76,8 +78,7 @@ def init(maps: DecisionMaps, params: DecisionParams, caps: Caps, lanes: Lanes,
     searches = spec.searches
     if searches and (fields is None or n_img <= 0):
         raise ValueError("init: a lane searches the plan for the path; pass fields= and n_img=")
-    world = World(maps, params, lanes, fields if searches else None, caps, spec, n_img,
-                  rival_params)  # fmt: skip
+    world = World(maps, params, lanes, fields, caps, spec, n_img, rival_params)
     return _fresh(world)
 
 
@@ -207,6 +208,21 @@ def _search(ops):
     return riv, jax.lax.dynamic_update_slice(riv_ok, ok, (at,))
 
 
+def _verdict(ops):
+    fields, pose, pts, mask = ops
+    return drift.verdict(pose, pts, mask, fields)
+
+
+def _check_drift(world: World, ev: WindowEvidence, held, out: Decision):
+    """Every lane reporting COMMIT has its pose checked against the window's last metre
+    (``drift``); those it does not support leave the commit (``machine.leave_drifted``)."""
+    poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
+    verdict = jax.vmap(lambda need, pose: sparse_cond(
+        need, _verdict, (world.fields, pose, ev.end_points, ev.end_mask)))(
+        out.state == COMMIT, poses)  # fmt: skip
+    return machine.leave_drifted(held, out, verdict)
+
+
 def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]:
     """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``)."""
     world = state.world
@@ -270,6 +286,8 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
     riv, riv_ok, searches, searched, held, out = jax.lax.fori_loop(
         0, 2 if pl >= 0 else 1, one_pass, carry
     )
+    if world.fields is not None and ev.end_points is not None:
+        held, out = _check_drift(world, ev, held, out)
     n_rejected = state.n_rejected + bad
     out = Decision(**{**out.__dict__, "searched": jnp.broadcast_to(searched, out.state.shape),
                       "n_rejected": jnp.broadcast_to(n_rejected, out.state.shape),

@@ -50,9 +50,19 @@ from mfcl_jax import se2
 from mfcl_jax.decision import lattice
 from mfcl_jax.decision.outcome import AMBIGUOUS, COMMIT, DEFER, Decision
 
-__all__ = ["Held", "CONTRADICTED", "INFEASIBLE", "STALE", "initial", "step"]
+__all__ = [
+    "Held",
+    "CONTRADICTED",
+    "INFEASIBLE",
+    "STALE",
+    "DRIFTED",
+    "UNSUPPORTED",
+    "initial",
+    "step",
+    "leave_drifted",
+]
 
-CONTRADICTED, INFEASIBLE, STALE = 9, 10, 13  # keys of outcome.REASONS
+CONTRADICTED, INFEASIBLE, STALE, DRIFTED, UNSUPPORTED = 9, 10, 13, 14, 15  # outcome.REASONS
 TRACK = (0.5, math.radians(3.0))  # a newest candidate this close to the held anchor tracks it
 
 
@@ -154,3 +164,22 @@ def step(held: Held, raw: Decision, newest, p, use_gate) -> tuple[Held, Decision
     committed = keep | new_commit
     held = Held(committed, jnp.where(keep, tracked, jnp.where(new_commit, raw.anchor, held.anchor)))
     return held, out
+
+
+def leave_drifted(held: Held, out: Decision, verdict) -> tuple[Held, Decision]:
+    """Lanes ``(L,)`` whose reported COMMIT the window's last metre does not support
+    (``drift.verdict``: ``DRIFTED`` or ``UNSUPPORTED``, else 0) report DEFER with that reason
+    instead and hold no commit afterwards; the others are unchanged."""
+    d = (verdict != 0) & (out.state == COMMIT)
+    zero = jnp.zeros_like
+    out = replace(
+        out,
+        state=jnp.where(d, DEFER, out.state).astype(out.state.dtype),
+        kind=jnp.where(d, lattice.KIND_NONE, out.kind).astype(out.kind.dtype),
+        reason=jnp.where(d, verdict, out.reason).astype(out.reason.dtype),
+        tau=jnp.where(d[:, None], zero(out.tau), out.tau),
+        alias_motion=jnp.where(d[:, None], zero(out.alias_motion), out.alias_motion),
+        competitor=jnp.where(d[:, None], zero(out.competitor), out.competitor),
+        has_competitor=out.has_competitor & ~d,
+    )
+    return Held(held.committed & ~d, held.anchor), out

@@ -30,6 +30,8 @@ REASONS = {
     11: "competitor not ruled out",
     12: "winner contradicted",
     13: "commit stale",
+    14: "commit drifted",
+    15: "commit unsupported",
 }
 
 

@@ -32,17 +32,16 @@ class Buildings:
     """Every building's decision maps (and rival fields) padded to one grid, ``(B, ...)``."""
 
     maps: object
-    fields: object  # None without a rival search
+    fields: object  # the plan's search fields (rivals.stack_fields)
     n_img: int
 
 
 def stack_buildings(floorplans, spec: LaneSpec, rival_params=rivals.DEFAULT_RIVALS) -> Buildings:
     """``Buildings`` of ``floorplans`` for the lanes of ``spec`` (``rivals.RivalParams``)."""
     maps = stack_maps([decision_maps(fp, min_iou=spec.min_iou) for fp in floorplans])
-    if not spec.searches:
-        return Buildings(maps, None, 0)
-    return Buildings(maps, rivals.stack_fields(floorplans, rival_params),
-                     rivals.image_size(floorplans, rival_params))  # fmt: skip
+    # the fields serve every lane (the drift check of a commit); the image size, the search
+    n_img = rivals.image_size(floorplans, rival_params) if spec.searches else 0
+    return Buildings(maps, rivals.stack_fields(floorplans, rival_params), n_img)
 
 
 def chunks(run_building, runs_per_call: int, buildings_per_call: int, keys=None):

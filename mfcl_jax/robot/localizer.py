@@ -29,7 +29,13 @@ from mfcl_jax.frontend import COMPILER_OPTIONS, FrontendParams, registration
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.robot import status
 from mfcl_jax.robot.traced import Traced
-from mfcl_jax.windows.arrays import EVIDENCE_POINTS, SubmapBatch, bucket, evidence_sample
+from mfcl_jax.windows.arrays import (
+    EVIDENCE_POINTS,
+    SubmapBatch,
+    bucket,
+    end_sample,
+    evidence_sample,
+)
 
 __all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize", "record_of"]
 
@@ -145,7 +151,7 @@ def _step(world, memory, sub, feats, X, traj, traj_mask, start, ev, fe_params):
         Y=c.pose[0], score=c.score[0], mask=c.mask[0], X=X, traj=traj, traj_mask=traj_mask,
         head=jnp.zeros((0, 3), f32), head_mask=jnp.zeros(0, bool), start=start,
         ev_points=ev[0], ev_origins=ev[1], ev_mask=ev[2], valid=jnp.bool_(True),
-        last=jnp.bool_(False), restart=jnp.bool_(False),
+        last=jnp.bool_(False), restart=jnp.bool_(False), end_points=ev[3], end_mask=ev[4],
     )  # fmt: skip
     state, dec = layer.update(layer.join(world, memory), evidence)
     return layer.split(state)[1], jax.tree.map(lambda a: a[0], dec), c.reason[0], jnp.sum(c.mask[0])
@@ -177,10 +183,8 @@ class Localizer:
         self._feats = jax.tree.map(jnp.asarray, fe.features(0))
         p, lanes, spec = make_lanes(self.params.decision, (variant,), primary=variant)
         maps = jax.tree.map(jnp.asarray, decision_maps(floorplan, min_iou=spec.min_iou))
-        fields, n_img = None, 0
-        if spec.searches:
-            fields = jax.tree.map(jnp.asarray, rivals.rival_fields(floorplan))
-            n_img = rivals.image_size([floorplan])
+        fields = jax.tree.map(jnp.asarray, rivals.rival_fields(floorplan))
+        n_img = rivals.image_size([floorplan]) if spec.searches else 0
         self._init = (maps, p.as_arrays(), self.params.caps, jax.tree.map(jnp.asarray, lanes),
                       spec, fields, n_img)  # fmt: skip
         folder = jax.config.jax_compilation_cache_dir
@@ -267,7 +271,7 @@ class Localizer:
                           np.zeros(1, np.int32))  # fmt: skip
         return (registration.sanitize_submaps(sub), self._feats, X,
                 np.asarray(traj, np.float32), np.asarray(traj_mask, bool), np.int32(start),
-                evidence_sample(pts, org))  # fmt: skip
+                (*evidence_sample(pts, org), *end_sample(pts, org)))  # fmt: skip
 
     def _prepare(self) -> None:
         """The step traced and compiled in the background (``Traced.prepare``) for inputs

@@ -97,6 +97,21 @@ REASON_TEXT = {
         "where the commit does: the odometry drifted faster than the commit could follow, "
         "so the commit is withdrawn (DEFER) and the next windows decide afresh.",
     ),
+    "commit drifted": (
+        "the last metre of scans fits the plan off the commit's heading",
+        "The layer reports a commit only where the scans of the window's last metre, fitted "
+        "to the plan from the committed pose, stay within the tracking tolerance (3 deg) of "
+        "its heading: here the fit turned farther, so the odometry has turned the pose off "
+        "what the scans say. The commit is withdrawn (DEFER) and the next windows decide "
+        "afresh.",
+    ),
+    "commit unsupported": (
+        "the last metre of scans touches no wall near the committed pose",
+        "The layer reports a commit only where the scans of the window's last metre touch "
+        "the plan's walls near the committed pose: here they touch none, so the robot is in "
+        "a stretch the plan does not show (or the pose is far off) and the pose rests on "
+        "odometry alone. The commit is withdrawn (DEFER) and the next windows decide afresh.",
+    ),
     "competitor not ruled out": (
         "another placement fits the scans as well",
         "The best placement is decisive by consensus, but re-scoring the windows' scans "

@@ -7,11 +7,13 @@ keyframe poses by LiDAR scan matching, ``padding`` lays many runs' windows into 
 """
 
 from mfcl_jax.windows.arrays import (
+    END_RADIUS,
     EVIDENCE_POINTS,
     Evidence,
     RunBatch,
     SubmapBatch,
     bucket,
+    end_sample,
     evidence_sample,
     pad_submaps,
 )
@@ -37,6 +39,7 @@ from mfcl_jax.windows.submaps import (
 )
 
 __all__ = [
+    "END_RADIUS",
     "EVIDENCE_POINTS",
     "Cutter",
     "Evidence",
@@ -52,6 +55,7 @@ __all__ = [
     "concat",
     "cut",
     "cut_many",
+    "end_sample",
     "evidence_sample",
     "keyframe_odometry",
     "keyframes",

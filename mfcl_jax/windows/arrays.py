@@ -22,6 +22,8 @@ __all__ = [
     "Evidence",
     "EVIDENCE_POINTS",
     "evidence_sample",
+    "END_RADIUS",
+    "end_sample",
     "bucket",
     "pad_submaps",
 ]
@@ -113,11 +115,17 @@ class Evidence:
             submap's points (deterministic).
         origins: ``(N, P, 2)`` their ray origins.
         mask: ``(N, P)`` bool.
+        end_points: ``(N, P, 2)`` the points of the window's last metre (``end_sample``),
+            which the layer fits to the plan where it reports a commit (``decision.drift``);
+            ``None`` where a caller has none (the check is then off).
+        end_mask: ``(N, P)`` bool.
     """
 
     points: jax.Array
     origins: jax.Array
     mask: jax.Array
+    end_points: jax.Array | None = None
+    end_mask: jax.Array | None = None
 
 
 EVIDENCE_POINTS = 128
@@ -133,6 +141,17 @@ def evidence_sample(points, origins, n: int = EVIDENCE_POINTS):
         idx = np.unique(np.linspace(0, m - 1, min(n, m)).round().astype(int))
         out_p[: len(idx)], out_o[: len(idx)], mask[: len(idx)] = points[idx], origins[idx], True
     return out_p, out_o, mask
+
+
+END_RADIUS = 1.0  # m: the window's "last metre", scans whose origin is this near its last one
+
+
+def end_sample(points, origins, n: int = EVIDENCE_POINTS, radius: float = END_RADIUS):
+    """``(pts (n, 2), mask (n,))`` evenly spread over the points of ``points (m, 2)`` whose
+    ray origin lies within ``radius`` of the window's last scan (the frame's origin)."""
+    near = np.hypot(*np.asarray(origins, np.float64).reshape(-1, 2).T) <= radius
+    p, _, mask = evidence_sample(np.asarray(points)[near], np.asarray(origins)[near], n)
+    return p, mask
 
 
 for _cls in (SubmapBatch, RunBatch, Evidence):

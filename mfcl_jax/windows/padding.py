@@ -18,6 +18,7 @@ from mfcl_jax.windows.arrays import (
     RunBatch,
     SubmapBatch,
     bucket,
+    end_sample,
     evidence_sample,
 )
 
@@ -75,6 +76,8 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     ev_p = np.zeros((n, EVIDENCE_POINTS, 2), np.float32)
     ev_o = np.zeros((n, EVIDENCE_POINTS, 2), np.float32)
     ev_m = np.zeros((n, EVIDENCE_POINTS), bool)
+    end_p = np.zeros((n, EVIDENCE_POINTS, 2), np.float32)
+    end_m = np.zeros((n, EVIDENCE_POINTS), bool)
     X = np.zeros((n, 3), np.float32)
     run = np.zeros(n, np.int32)
     window = np.zeros(n, np.int32)
@@ -99,6 +102,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
         for k, (pts, org) in enumerate(zip(w.points, w.origins, strict=True)):
             points[i, : len(pts)], origins[i, : len(pts)], mask[i, : len(pts)] = pts, org, True
             ev_p[i], ev_o[i], ev_m[i] = evidence_sample(pts, org)
+            end_p[i], end_m[i] = end_sample(pts, org)
             X[i], run[i], window[i], t[i], building[i] = w.X[k], r, k, w.t[k], b
             submap[r, k] = i
             i += 1
@@ -108,7 +112,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
     subs = SubmapBatch(points, origins, mask, X, run, window, t, np.zeros(n, np.int32))
     runs = RunBatch(traj, traj_seg, traj_mask, window_start, window_end, window_mask, submap)
     rb = np.asarray([b for *_, b in items], np.int32)
-    ev = Evidence(ev_p, ev_o, ev_m)
+    ev = Evidence(ev_p, ev_o, ev_m, end_p, end_m)
     return WindowBatch(subs, runs, building, rb, ev, [w for _, w, _ in items])
 
 
@@ -162,7 +166,7 @@ def concat(batches) -> WindowBatch:
     rb = RunBatch(*(np.concatenate(c) for c in zip(*runs, strict=True)))
     light = [replace(w, points=[], origins=[]) for b in batches for w in b.windows]
     ev = Evidence(*(np.concatenate([getattr(b.evidence, f) for b in batches]) for f in
-                    ("points", "origins", "mask")))  # fmt: skip
+                    ("points", "origins", "mask", "end_points", "end_mask")))  # fmt: skip
     return WindowBatch(
         sub,
         rb,

@@ -84,7 +84,8 @@ def synth_batch(fp, R, K, J, T, seed=0):
         t=np.zeros(n),
         n_dropped=np.zeros(n, np.int32),
     )
-    evidence = W.Evidence(*(e.reshape(n, *e.shape[2:]) for e in ev))
+    p, o, m = (e.reshape(n, *e.shape[2:]) for e in ev)
+    evidence = W.Evidence(p, o, m, p, m)  # the scan at the window's end is its last metre
     batch = W.WindowBatch(subs, runs, np.zeros(n, np.int32), np.zeros(R, np.int32), evidence)
     cands = Candidates(
         Y.reshape(n, J, 3), S.reshape(n, J), np.ones((n, J), bool), np.zeros(n, np.int32)

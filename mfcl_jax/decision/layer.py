@@ -215,12 +215,16 @@ def _verdict(ops):
 
 def _check_drift(world: World, ev: WindowEvidence, held, out: Decision):
     """Every lane reporting COMMIT has its pose checked against the window's last metre
-    (``drift``); those it does not support leave the commit (``machine.leave_drifted``)."""
+    (``drift``); those it does not support leave the commit (``machine.leave_drifted``).
+    Lanes reporting the very same pose share one check (most lanes commit alike)."""
     poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
-    verdict = jax.vmap(lambda need, pose: sparse_cond(
-        need, _verdict, (world.fields, pose, ev.end_points, ev.end_mask)))(
-        out.state == COMMIT, poses)  # fmt: skip
-    return machine.leave_drifted(held, out, verdict)
+    need = out.state == COMMIT
+    same = jnp.all(poses[:, None] == poses[None], axis=-1) & need[:, None] & need[None]
+    rep = jnp.argmax(same, axis=1)  # the first lane with this pose (itself if none before)
+    first = need & (rep == jnp.arange(need.shape[0]))
+    verdict = jax.vmap(lambda n, pose: sparse_cond(
+        n, _verdict, (world.fields, pose, ev.end_points, ev.end_mask)))(first, poses)  # fmt: skip
+    return machine.leave_drifted(held, out, jnp.where(need, verdict[rep], 0))
 
 
 def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]:

@@ -6,7 +6,7 @@ every turn the odometry takes inside it: when the LiDAR odometry turns the headi
 degrees too far within a window, that window's registration (and the per-prefix winner, and
 the tracked commit) place the last scan a few degrees off, and nothing the rules read
 disagrees. The scans of the window's last metre (``windows.end_sample``, in the frame of its
-last scan) are nearly free of that bend. ``drifted`` climbs the plan's wall-proximity field
+last scan) are nearly free of that bend. ``verdict`` climbs the plan's wall-proximity field
 (``PlanFields.hit``) from the reported pose with those points, in rounds of 27 poses
 (``STEPS``: 2 deg / 0.2 m down to 0.25 deg / 2.5 cm, up to 8 deg and 0.8 m away), and says
 the pose has drifted when the climb ends farther than ``machine.TRACK`` in heading from it.
@@ -38,8 +38,9 @@ import numpy as np
 from mfcl_jax import se2
 from mfcl_jax.decision.machine import DRIFTED, TRACK, UNSUPPORTED
 from mfcl_jax.frontend.path_fields import PlanFields, sample_field
+from mfcl_jax.sparse_cond import sparse_cond
 
-__all__ = ["STEPS", "MIN_POINTS", "MIN_SUPPORT", "DRIFTED", "UNSUPPORTED", "fit", "verdict"]
+__all__ = ["STEPS", "MIN_POINTS", "MIN_SUPPORT", "DRIFTED", "UNSUPPORTED", "verdict", "check"]
 
 # (step in m, step in deg, rounds): a round moves to the best of the 27 poses around
 STEPS = ((0.2, 2.0, 4), (0.1, 1.0, 2), (0.05, 0.5, 2), (0.025, 0.25, 1))
@@ -60,38 +61,48 @@ def _score(poses, pts, w, fields: PlanFields):
     return jnp.sum(h * w, axis=-1)
 
 
-def fit(pose, pts, mask, fields: PlanFields):
-    """The end of the climb from ``pose (3,)`` with ``pts (N, 2)`` (``mask (N,)``), and its
-    mean wall proximity."""
-    pose, pts = jnp.asarray(pose, jnp.float32), jnp.asarray(pts, jnp.float32)
-    mask = jnp.asarray(mask, bool)
-    w = mask.astype(jnp.float32) / jnp.maximum(jnp.sum(mask), 1).astype(jnp.float32)
-    at, best = pose, _score(pose[None], pts, w, fields)[0]
+def _climb(pose, pts, w, fields: PlanFields):
+    """Where the climb from ``pose (3,)`` with ``pts (N, 2)`` (weights ``w``) ends."""
     for step_xy, step_deg, rounds in STEPS:
         scale = jnp.asarray([step_xy, step_xy, math.radians(step_deg)], jnp.float32)
 
-        def one(_, carry, scale=scale):
-            at, best = carry
+        def one(_, at, scale=scale):
             poses = at[None] + _UNIT * scale
             s = _score(poses, pts, w, fields)
             j = jnp.argmax(s)
-            move = s[j] > s[_CENTRE] + 1e-6  # the centre keeps ties: no sliding on flat ground
-            return jnp.where(move, poses[j], at), jnp.where(move, s[j], best)
+            # the centre keeps ties: no sliding on flat ground
+            return jnp.where(s[j] > s[_CENTRE] + 1e-6, poses[j], at)
 
-        at, best = jax.lax.fori_loop(0, rounds, one, (at, best))
-    return at, best
+        pose = jax.lax.fori_loop(0, rounds, one, pose)
+    return pose
 
 
 def verdict(pose, pts, mask, fields: PlanFields):
     """``()`` int32: ``UNSUPPORTED`` where the last metre's mean wall proximity at ``pose``
-    is under ``MIN_SUPPORT``, else ``DRIFTED`` where its fit from ``pose`` ends farther than
+    is under ``MIN_SUPPORT``, else ``DRIFTED`` where its climb from ``pose`` ends farther than
     ``machine.TRACK`` in heading from it, else 0 (and 0 with fewer than ``MIN_POINTS``
     points)."""
-    pose = jnp.asarray(pose, jnp.float32)
+    pose, pts = jnp.asarray(pose, jnp.float32), jnp.asarray(pts, jnp.float32)
     mask = jnp.asarray(mask, bool)
     w = mask.astype(jnp.float32) / jnp.maximum(jnp.sum(mask), 1).astype(jnp.float32)
-    support = _score(pose[None], jnp.asarray(pts, jnp.float32), w, fields)[0]
-    at, _ = fit(pose, pts, mask, fields)
-    _, dth = se2.distance_pair(at, pose)
+    support = _score(pose[None], pts, w, fields)[0]
+    _, dth = se2.distance_pair(_climb(pose, pts, w, fields), pose)
     code = jnp.where(support < MIN_SUPPORT, UNSUPPORTED, jnp.where(dth > TRACK[1], DRIFTED, 0))
     return jnp.where(jnp.sum(mask) >= MIN_POINTS, code, 0).astype(jnp.int32)
+
+
+def _verdict(ops):
+    fields, pose, pts, mask = ops
+    return verdict(pose, pts, mask, fields)
+
+
+def check(fields: PlanFields, poses, need, pts, mask):
+    """``verdict`` of every lane's reported pose ``poses (L, 3)`` where ``need (L,)`` (its
+    COMMIT), 0 elsewhere, for one window's last metre ``pts (N, 2)``, ``mask (N,)``. Lanes
+    reporting the very same pose share one climb (most lanes commit alike); each climb runs
+    through ``sparse_cond``, so a window without a commit pays nothing."""
+    same = jnp.all(poses[:, None] == poses[None], axis=-1) & need[:, None] & need[None]
+    rep = jnp.argmax(same, axis=1)  # the first lane with this pose (itself if none before)
+    first = need & (rep == jnp.arange(need.shape[0]))
+    v = jax.vmap(lambda n, pose: sparse_cond(n, _verdict, (fields, pose, pts, mask)))(first, poses)
+    return jnp.where(need, v[rep], 0)

@@ -208,25 +208,6 @@ def _search(ops):
     return riv, jax.lax.dynamic_update_slice(riv_ok, ok, (at,))
 
 
-def _verdict(ops):
-    fields, pose, pts, mask = ops
-    return drift.verdict(pose, pts, mask, fields)
-
-
-def _check_drift(world: World, ev: WindowEvidence, held, out: Decision):
-    """Every lane reporting COMMIT has its pose checked against the window's last metre
-    (``drift``); those it does not support leave the commit (``machine.leave_drifted``).
-    Lanes reporting the very same pose share one check (most lanes commit alike)."""
-    poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
-    need = out.state == COMMIT
-    same = jnp.all(poses[:, None] == poses[None], axis=-1) & need[:, None] & need[None]
-    rep = jnp.argmax(same, axis=1)  # the first lane with this pose (itself if none before)
-    first = need & (rep == jnp.arange(need.shape[0]))
-    verdict = jax.vmap(lambda n, pose: sparse_cond(
-        n, _verdict, (world.fields, pose, ev.end_points, ev.end_mask)))(first, poses)  # fmt: skip
-    return machine.leave_drifted(held, out, jnp.where(need, verdict[rep], 0))
-
-
 def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]:
     """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``)."""
     world = state.world
@@ -291,7 +272,10 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         0, 2 if pl >= 0 else 1, one_pass, carry
     )
     if world.fields is not None and ev.end_points is not None:
-        held, out = _check_drift(world, ev, held, out)
+        # every reported commit against the window's last metre of scans
+        poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
+        v = drift.check(world.fields, poses, out.state == COMMIT, ev.end_points, ev.end_mask)
+        held, out = machine.leave_drifted(held, out, v)
     n_rejected = state.n_rejected + bad
     out = Decision(**{**out.__dict__, "searched": jnp.broadcast_to(searched, out.state.shape),
                       "n_rejected": jnp.broadcast_to(n_rejected, out.state.shape),

@@ -14,7 +14,7 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
     """A hand-made scored table: the metres come from the first COMMIT window, the oracle
     window and the first wrong COMMIT window; the delay in metres and the tables' medians are
     over the identifiable runs committed correctly, as ``median_delay``."""
-    from mfcl_jax.bench.report import family_table, run_table
+    from mfcl_jax.bench.report import family_table, label_strength, run_table
     from mfcl_jax.score.identifiability import RunLabel
 
     metres = [6.0, 8.0, 10.5, 12.0, 14.2]
@@ -30,7 +30,8 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
             rows.append(dict(run=run, policy="ours", set=1, k=k, state=s, correct=bool(c),
                              err_xy=0.1, err_yaw_deg=1.0, metres=metres[k - 1], family="f",
                              fault="", source="procedural"))  # fmt: skip
-    lab = [RunLabel(True, o, np.ones(5, bool), 0, None) for o in (2, 2, 1, 3)]
+    lab = [RunLabel(True, o, np.ones(5, bool), 0, None, st)
+           for o, st in zip((2, 2, 1, 3), (np.inf, 1.5, 1.04, 7.0), strict=True)]  # fmt: skip
     t = run_table(pd.DataFrame(rows), lab).set_index("run")
     assert t["commit_m"].tolist()[:3] == [10.5, 8.0, 12.0] and np.isnan(t.loc[3, "commit_m"])
     assert t["oracle_m"].tolist() == [8.0, 8.0, 6.0, 10.5]
@@ -41,6 +42,12 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
     assert fam.loc["all", "median_delay"] == 2.0  # windows 1 and 3
     assert fam.loc["all", "median_commit_m"] == pytest.approx((10.5 + 12.0) / 2)
     assert fam.loc["all", "median_delay_m"] == pytest.approx((2.5 + 6.0) / 2)
+    # coverage by how clearly each run was identified: runs 1 and 2 are marginal (1.5, 1.04;
+    # run 1 committed falsely, run 2 right), runs 0 and 3 clear (0 right, 3 abstains)
+    ls = label_strength(t.reset_index(), ["ours"]).iloc[0]
+    counts = ls[["marginal", "marginal_covered", "clear", "clear_covered"]].tolist()
+    assert counts == [2, 1, 2, 1]
+    assert ls["coverage"].startswith("2/4") and ls["coverage_clear"].startswith("1/2")
 
 
 def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors():

@@ -24,3 +24,7 @@ def test_a_runs_label_does_not_depend_on_the_runs_labelled_before_it():
     a, b = dataclasses.asdict(alone), dataclasses.asdict(after)
     assert np.array_equal(a.pop("identifiable_k"), b.pop("identifiable_k"))
     assert a == b
+    # the strength is the weakest contradiction in multiples of the thresholds: the run is
+    # identifiable iff it exceeds 1
+    for lab in (alone, after):
+        assert lab.identifiable == (lab.strength > 1.0) and not np.isnan(lab.strength)

@@ -60,7 +60,7 @@ def run_benchmark(cfg: BenchmarkConfig) -> dict:
     runs = read_runs([out])  # tables come from the file, as in ``merge``: identical tables
     labels = runs.drop_duplicates("name")[
         ["name", "family", "fault", "level", "identifiable", "oracle_k", "n_alternatives",
-         "oracle_m"]
+         "label_strength", "oracle_m"]
     ]  # fmt: skip
     atomic_write(out / "labels.csv", labels.to_csv(index=False))
     col.tick("total", time.perf_counter() - t_start)
@@ -147,6 +147,9 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
     tabs["matrix"] = report.family_matrix(tabs["families"])
     tabs["sources"] = report.family_table(runs, pols, by="source")
     tabs["risk_coverage"] = report.risk_coverage(runs, pols)
+    strength = report.label_strength(runs, pols)
+    if not strength.empty:
+        tabs["label_strength"] = strength
     for axis in FAULTS:
         t = report.fault_table(runs, axis, pols)
         if not t.empty:

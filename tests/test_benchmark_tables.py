@@ -48,6 +48,9 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
     counts = ls[["marginal", "marginal_covered", "clear", "clear_covered"]].tolist()
     assert counts == [2, 1, 2, 1]
     assert ls["coverage"].startswith("2/4") and ls["coverage_clear"].startswith("1/2")
+    # a run without a strength (an older runs.csv merged in): no split at all
+    older = t.reset_index().assign(label_strength=[np.inf, 1.5, np.nan, 7.0])
+    assert label_strength(older, ["ours"]).empty
 
 
 def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors():

@@ -155,9 +155,12 @@ def label_strength(runs: pd.DataFrame, policies) -> pd.DataFrame:
     """Coverage by how clearly the labeller identified a run (nominal runs, default set):
     ``marginal`` runs rest on a contradiction of at most ``CLEAR`` times its thresholds
     (``score.identifiability``: 1.04 is 6 of 192 rays through a wall in three scans),
-    ``clear`` runs on more. NaN strength (a ``runs.csv`` from before the column): no row."""
+    ``clear`` runs on more. Empty when some identifiable run has no strength (a ``runs.csv``
+    from before the column, alone or merged with newer ones): a split of part of the runs
+    would read as one of all of them."""
     nom = runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
-    if "label_strength" not in nom or nom["label_strength"].isna().all():
+    ident = nom["identifiable"].astype(bool)
+    if "label_strength" not in nom or nom.loc[ident, "label_strength"].isna().any():
         return pd.DataFrame()
     rows = []
     for pol in policies:

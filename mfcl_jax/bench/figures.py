@@ -87,9 +87,9 @@ def commit_distance_figure(runs: pd.DataFrame, policies=DISTANCE_POLICIES):
     the first wrong COMMIT window, ``false_m``) against the metres travelled; nominal runs at
     the default thresholds, for the ``DISTANCE_POLICIES`` among ``policies`` (all of
     ``policies`` when none is). The curves end at the coverage and the false-commit rate."""
-    from mfcl_jax.bench.run import DEFAULT_SET
+    from mfcl_jax.bench.report import nominal
 
-    nom = runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
+    nom = nominal(runs)
     present = [p for p in policies if p in set(nom["policy"])]
     shown = [p for p in present if p in DISTANCE_POLICIES] or present
     ends = nom.loc[nom["policy"].isin(shown), ["commit_m", "false_m"]].to_numpy(np.float64)

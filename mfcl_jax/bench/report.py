@@ -36,6 +36,7 @@ from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
 __all__ = [
     "run_table",
+    "nominal",
     "family_table",
     "family_matrix",
     "risk_coverage",
@@ -134,9 +135,14 @@ def _summary(g: pd.DataFrame) -> dict:
     )
 
 
+def nominal(runs: pd.DataFrame) -> pd.DataFrame:
+    """The nominal rows (no fault) at the default threshold set."""
+    return runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
+
+
 def family_table(runs: pd.DataFrame, policies, by: str = "family") -> pd.DataFrame:
     """Per ``by`` value and policy (nominal runs, default set), plus an ``all`` row each."""
-    nom = runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
+    nom = nominal(runs)
     rows = []
     for pol in policies:
         g = nom[nom["policy"] == pol]
@@ -158,7 +164,7 @@ def label_strength(runs: pd.DataFrame, policies) -> pd.DataFrame:
     ``clear`` runs on more. Empty when some identifiable run has no strength (a ``runs.csv``
     from before the column, alone or merged with newer ones): a split of part of the runs
     would read as one of all of them."""
-    nom = runs[(runs["fault"].fillna("") == "") & (runs["set"] == DEFAULT_SET)]
+    nom = nominal(runs)
     ident = nom["identifiable"].astype(bool)
     if "label_strength" not in nom or nom.loc[ident, "label_strength"].isna().any():
         return pd.DataFrame()

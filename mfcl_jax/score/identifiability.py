@@ -232,13 +232,13 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
         ident = ~np.any(alt[:, ends], axis=0)  # (K,)
         later = np.minimum.accumulate(ident[::-1])[::-1]
         oracle = int(np.argmax(later)) + 1 if later[-1] else None
-        live = np.flatnonzero(alt[:, ends[-1]])
-        e = ends[-1] + 1
+        e = ends[-1] + 1  # the scans up to the last window's end
+        live = np.flatnonzero(alt[:, e - 1])
         strong = np.max(ratio[:, :e], axis=1, initial=-np.inf)[(far | turned)[:, e - 1]]
         strength = float(np.min(strong, initial=np.inf))
         best = None
         if len(live):
-            gap = hit[0, : ends[-1] + 1].mean() - hit[1 + live, : ends[-1] + 1].mean(1)
+            gap = hit[0, :e].mean() - hit[1 + live, :e].mean(1)
             best = tuple(float(v) for v in G[1 + live[int(np.argmin(gap))]])
         out.append(RunLabel(bool(ident[-1]), oracle, ident, int(len(live)), best, strength))
     return out

@@ -68,17 +68,18 @@ def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors(
     ]  # fmt: skip
     w = pd.DataFrame(rows, columns=["policy", "fault", "llr", "correct"])
     t = ratio_calibration(w)
-    assert len(t) == len(EDGES) - 1 and t["bound"].iloc[0] == 1.0
-    assert t["windows"].tolist() == [2, 0, 0, 1, 1, 0, 0, 1]
-    assert t["wrong"].tolist() == [1, 0, 0, 1, 0, 0, 0, 0]
-    assert t["fault_windows"].sum() == 1 and t["fault_wrong"].tolist()[4] == 1
-    assert t["bound"].iloc[4] == pytest.approx(1e-2)
+    # bins [0, 1), [1, 2), [2, 2.30), [2.30, 3), [3, 4.61), [4.61, 6.91), ..., [13.8, inf)
+    assert len(t) == len(EDGES) - 1 == 9 and t["bound"].iloc[0] == 1.0
+    assert t["windows"].tolist() == [2, 0, 0, 0, 1, 1, 0, 0, 1]
+    assert t["wrong"].tolist() == [1, 0, 0, 0, 1, 0, 0, 0, 0]
+    assert t["fault_windows"].sum() == 1 and t["fault_wrong"].tolist()[5] == 1
+    assert t["bound"].iloc[3] == pytest.approx(1e-1) and t["bound"].iloc[5] == pytest.approx(1e-2)
     # judged by the test's own placement where the table records it (test_correct), not by
     # the reported anchor: a champion a few degrees off under a right A* is not a wrong A*
     w["test_correct"] = [True, False, True, True, True, None, None, None, None, False]
     t = ratio_calibration(w)
-    assert t["windows"].tolist() == [2, 0, 0, 1, 1, 0, 0, 1]
-    assert t["wrong"].tolist() == [1, 0, 0, 0, 0, 0, 0, 0]
+    assert t["windows"].tolist() == [2, 0, 0, 0, 1, 1, 0, 0, 1]
+    assert t["wrong"].tolist() == [1, 0, 0, 0, 0, 0, 0, 0, 0]
 
 
 def test_fault_level_calibration_counts_each_level_past_each_lanes_threshold():
@@ -103,6 +104,9 @@ def test_fault_level_calibration_counts_each_level_past_each_lanes_threshold():
         ("nominal", ""), ["windows_a2", "wrong_a2", "windows_a6", "wrong_a6"]
     ].tolist() == [2, 1, 0, 0]  # 10 nats: past 1e-4 (9.21), short of 1e-6 (13.8)
     assert t.loc[("nominal", ""), ["windows_a4", "wrong_a4"]].tolist() == [1, 1]
+    # 1e-1 (2.30 nats): the 4-nat wrong window of drift 0.01 is past it, short of 1e-2 (4.61)
+    assert t.loc[("drift", "0.01"), ["windows_a1", "wrong_a1"]].tolist() == [2, 1]
+    assert t.loc[("all fault rows", ""), ["windows_a1", "wrong_a1"]].tolist() == [3, 2]
     assert t.loc[("drift", "0.01"), ["windows", "wrong", "windows_a2", "wrong_a2"]].tolist() == [
         2,
         1,

@@ -22,10 +22,12 @@ import pandas as pd
 
 __all__ = ["EDGES", "LANE_ALPHAS", "ratio_calibration", "fault_level_calibration"]
 
-# bin edges: 1, 2, 3 nats, then the thresholds of the lanes (alpha 1e-2, 1e-3, 1e-4, 1e-6)
-EDGES = (0.0, 1.0, 2.0, 3.0, math.log(1e2), math.log(1e3), math.log(1e4), math.log(1e6), math.inf)
 # the uniqueness lanes' error rates, by the suffix of their column in ``fault_level_calibration``
-LANE_ALPHAS = {"a2": 1e-2, "a3": 1e-3, "a4": 1e-4, "a6": 1e-6}
+LANE_ALPHAS = {"a1": 1e-1, "a2": 1e-2, "a3": 1e-3, "a4": 1e-4, "a6": 1e-6}
+# bin edges: 1, 2, 3 nats and the lanes' thresholds log(1 / alpha) (2.30 ... 13.8 nats)
+EDGES = tuple(sorted({0.0, 1.0, 2.0, 3.0, *(math.log(1 / a) for a in LANE_ALPHAS.values())})) + (
+    math.inf,
+)
 
 
 def _tested(windows: pd.DataFrame, policy: str):

@@ -67,8 +67,9 @@ def risk_coverage_figure(rc: pd.DataFrame, title: str = ""):
     return fig
 
 
-# The policies of the distance figure (those present): our layer, the paper's, the filter.
-DISTANCE_POLICIES = ("ours", "ours_unique", "paper", "mcl")
+# The policies of the distance figure (those present): our layer, two uniqueness lanes (1e-3,
+# 1e-1), the paper's layer, the particle filter.
+DISTANCE_POLICIES = ("ours", "ours_unique", "ours_unique_a1", "paper", "mcl")
 
 
 def _cumulative(ax, metres, n: int, x_end: float, label: str, style: dict) -> None:

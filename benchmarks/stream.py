@@ -5,10 +5,12 @@ stream replays them for ``--windows`` windows, each replay's odometry shifted by
 that the history keeps growing with new anchors. The layer runs with the robot's capacities
 (``robot.localizer.ROBOT_CAPS``: 64 windows, 1024 keyframes), so a long run's older windows
 leave the history and every update does the same work. The first update compiles (reported
-apart, ``compile``); the updates that ran the rival search (the layer about to commit) or the
-certification are listed apart; every other update is timed as a run (wall and process CPU).
-Medians per history bin. Writes ``results/bench_stream.csv``, ``.md`` and ``.png``.
-Usage: ``python benchmarks/stream.py [--windows 512]``.
+apart, ``compile``); the updates that ran the rival search (the layer about to commit), the
+certification or the uniqueness test (``--policy ours_unique*``, ``mfcl localize
+--early-commit``) are listed apart; every other update is timed as a run (wall and process
+CPU). Medians per history bin. Writes ``results/bench_stream.csv``, ``.md`` and ``.png``
+(``bench_stream_<policy>.*`` for another policy).
+Usage: ``python benchmarks/stream.py [--windows 512] [--policy ours_unique]``.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ def main(argv=None) -> int:
 
     from mfcl_jax import windows as W
     from mfcl_jax.decision import layer, rivals
-    from mfcl_jax.decision.lanes import make_lanes
+    from mfcl_jax.decision.lanes import ROBOT_POLICIES, make_lanes
     from mfcl_jax.decision.maps import decision_maps
     from mfcl_jax.frontend.driver import FrontEnd
     from mfcl_jax.robot.localizer import ROBOT_CAPS
@@ -43,8 +45,11 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--windows", type=int, default=512)
-    ap.add_argument("--out", default=str(ROOT / "results" / "bench_stream"))
+    ap.add_argument("--out", help="output stem (default results/bench_stream[_<policy>])")
+    ap.add_argument("--policy", default="ours", choices=ROBOT_POLICIES)
     a = ap.parse_args(argv)
+    suffix = "" if a.policy == "ours" else f"_{a.policy}"
+    a.out = a.out or str(ROOT / "results" / f"bench_stream{suffix}")
 
     rec = simulate("three_rooms", ["T1"], [0])[0]
     fp = rec.floorplan
@@ -52,7 +57,7 @@ def main(argv=None) -> int:
     wb = W.pack([(rec.seq, w, 0)], capacity=4096)
     cand = FrontEnd([fp]).register(wb.submaps, wb.building)
     K, caps = len(w), ROBOT_CAPS
-    p, lanes, spec = make_lanes(None, ("ours",))
+    p, lanes, spec = make_lanes(None, (a.policy,), primary=a.policy)
     maps = jax.tree.map(jnp.asarray, decision_maps(fp, min_iou=spec.min_iou))
     fields = jax.tree.map(jnp.asarray, rivals.rival_fields(fp))
     state = layer.init(maps, p.as_arrays(), caps, jax.tree.map(jnp.asarray, lanes), spec, fields,
@@ -93,31 +98,40 @@ def main(argv=None) -> int:
         d = jax.tree.map(np.asarray, d)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         rows.append(dict(window=n + 1, state=int(d.state), searched=bool(d.searched),
-                         certified=bool(d.certified), dropped=int(d.dropped),
-                         wall_ms=1e3 * wall, cpu_ms=1e3 * cpu))  # fmt: skip
+                         certified=bool(d.certified), tested=not np.isnan(float(d.llr)),
+                         dropped=int(d.dropped), wall_ms=1e3 * wall,
+                         cpu_ms=1e3 * cpu))  # fmt: skip
     df = pd.DataFrame(rows)
     df["history"] = pd.cut(df["window"], bins=BINS).astype(str)
-    plain = df[(df["window"] > 1) & ~df["searched"] & ~df["certified"]]
+    plain = df[(df["window"] > 1) & ~df["searched"] & ~df["certified"] & ~df["tested"]]
     run = plain.groupby("history", sort=False)[["wall_ms", "cpu_ms"]].median()
     run["updates"] = plain.groupby("history", sort=False).size()
     out = pathlib.Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(out.with_suffix(".csv"), index=False)
     print(f"compile (first update): {df['wall_ms'].iloc[0] / 1e3:.1f} s")
-    extra = df[(df["window"] > 1) & (df["searched"] | df["certified"])]
+    extra = df[(df["window"] > 1) & (df["searched"] | df["certified"]) & ~df["tested"]]
     print(f"certified or searched updates: {len(extra)}, median "
           f"{extra['wall_ms'].median():.1f} ms")  # fmt: skip
+    tested = df[(df["window"] > 1) & df["tested"]]
+    if len(tested):
+        print(f"updates with the uniqueness test: {len(tested)}, median "
+              f"{tested['wall_ms'].median():.1f} ms")  # fmt: skip
     print(run.round(2).to_string())
     load = os.getloadavg()[0]
     print(f"load1 {load:.2f}")
     table = run.round(2).reset_index()
     table.loc[len(table)] = ["compile (first update)", df["wall_ms"].iloc[0], None, 1]
     table.loc[len(table)] = ["certified or searched", extra["wall_ms"].median(), None, len(extra)]
+    if len(tested):
+        table.loc[len(table)] = ["uniqueness test", tested["wall_ms"].median(), None, len(tested)]
     note = f"\n\nMedians in ms; load average {load:.2f} on {os.cpu_count()} cores at the end.\n"
     out.with_suffix(".md").write_text(table.to_markdown(index=False, floatfmt=".1f") + note)
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(plain["window"], plain["wall_ms"], ".", ms=3, label="update (wall)")
     ax.plot(extra["window"], extra["wall_ms"], "x", ms=4, label="with certification/search")
+    if len(tested):
+        ax.plot(tested["window"], tested["wall_ms"], "+", ms=5, label="with the uniqueness test")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("windows of history")

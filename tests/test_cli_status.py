@@ -39,7 +39,7 @@ def test_every_reason_and_state_is_explained():
     assert set(status.REASON_TEXT) == set(REASONS.values()) - {""}
     assert set(status.STATE_TEXT) == set(STATE_NAMES.values())
     text = status.help_text()
-    for word in [*status.REASON_TEXT, *status.STATE_TEXT, "B1", "B2", "margin", "tau"]:
+    for word in [*status.REASON_TEXT, *status.STATE_TEXT, "B1", "B2", "margin", "tau", "L"]:
         assert f"{word}: " in text
 
 
@@ -216,6 +216,56 @@ def test_progress_flag_reaches_simulate_and_localize():
                                       "--out", "o", "--progress"])  # fmt: skip
     assert args.progress
     assert build_parser().parse_args(["localize", "d", "--progress"]).progress
+
+
+# ------------------------------------------------------------------ --early-commit
+def test_early_commit_selects_the_uniqueness_lane_of_its_alpha(capsys):
+    """``--early-commit ALPHA`` runs the uniqueness lane of that error rate (the flag's
+    choices are the lanes' rates); no flag runs ``ours``; anything else is refused."""
+    from mfcl_jax.cli.common import localize_params
+    from mfcl_jax.cli.localize import EARLY_COMMIT_ALPHAS
+    from mfcl_jax.decision.lanes import UNIQUE_LANES
+    from mfcl_jax.robot.localizer import LocalizeParams
+
+    assert sorted(EARLY_COMMIT_ALPHAS) == sorted(UNIQUE_LANES)
+    parse = build_parser().parse_args
+    p = localize_params(parse(["localize", "d", "--early-commit", "0.001"]))
+    assert p.policy == "ours_unique" and p.unique_llr == pytest.approx(math.log(1e3))
+    assert localize_params(parse(["localize", "d", "--early-commit", "1e-1"])).policy == (
+        "ours_unique_a1"
+    )
+    p = localize_params(parse(["localize", "d"]))
+    assert p.policy == "ours" and p.unique_llr is None
+    with pytest.raises(SystemExit):
+        parse(["localize", "d", "--early-commit", "0.05"])
+    assert "invalid choice: 0.05" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="policy='paper', expected one of"):
+        LocalizeParams(policy="paper")
+
+
+def test_the_uniqueness_ratio_is_written_and_shown():
+    """A uniqueness lane's line holds ``unique: {llr, needed}`` (null where the test did not
+    run, "inf" / "-inf" where nothing competed / a veto held); the status line shows it as
+    ``L=ratio/threshold``; a bad entry is named."""
+    assert status.unique_entry(3.35291, 6.9078) == {"llr": 3.3529, "needed": 6.9078}
+    assert status.unique_entry(float("nan"), 2.3026)["llr"] is None
+    assert status.unique_entry(float("inf"), 2.3026)["llr"] == "inf"
+    assert status.unique_entry(float("-inf"), 2.3026)["llr"] == "-inf"
+    base = dict(OLD, pose=None, reason="unsaturated", alternatives=None)
+    lines = [status.status_line(dict(base, unique=status.unique_entry(v, 6.9078)))
+             for v in (3.35291, float("nan"), float("-inf"), float("inf"))]  # fmt: skip
+    assert [ln.split("margin=1 ")[1] for ln in lines] == [
+        "L=3.35/6.91]", "L=-/6.91]", "L=vetoed/6.91]", "L=inf/6.91]"
+    ]  # fmt: skip
+    assert "L=" not in status.status_line(base)  # ours: no test, nothing shown
+    line = decision_line(dict(base, unique=status.unique_entry(float("inf"), 6.9078)))
+    assert json.loads(line)["unique"] == {"llr": "inf", "needed": 6.9078}
+    for bad, words in (({"llr": 1.0}, "expected {llr, needed}"),
+                       ({"llr": "big", "needed": 2.3}, "unique.llr='big'"),
+                       ({"llr": 1.0, "needed": 0.0}, "unique.needed=0.0")):  # fmt: skip
+        with pytest.raises(DataError, match="decision #0") as e:
+            decision_line(dict(base, unique=bad), "decision #0")
+        assert words in str(e.value)
 
 
 # ------------------------------------------------------------------ compilation cache

@@ -29,6 +29,10 @@ def localize_params(args):
     from mfcl_jax.robot.localizer import LocalizeParams
 
     p = LocalizeParams().with_d_s(args.d_s)
+    if getattr(args, "early_commit", None) is not None:
+        from mfcl_jax.decision.lanes import UNIQUE_LANES
+
+        p = replace(p, policy=UNIQUE_LANES[args.early_commit])
     if getattr(args, "no_scan_match", False):
         sm = replace(p.window.scan_match, enabled=False)
         p = replace(p, window=replace(p.window, scan_match=sm))

@@ -16,6 +16,9 @@ from mfcl_jax.robot.status import help_text
 __all__ = ["add_localize_command", "cmd_localize", "EXIT_BAD_INPUT"]
 
 EXIT_BAD_INPUT = 2  # ``mfcl_jax.cli.main``: a bad input or an output that cannot be written
+# the error rates of the uniqueness lanes (``decision.lanes.UNIQUE_LANES``; a test keeps them
+# in step: this module imports no JAX, so ``mfcl --help`` stays light)
+EARLY_COMMIT_ALPHAS = (1e-1, 1e-2, 1e-3, 1e-4, 1e-6)
 
 LOCALIZE_EPILOG = """\
 decisions file (--out, JSON lines; one line per window):
@@ -50,6 +53,17 @@ def add_localize_command(subparsers) -> None:
     )
     add_input_flags(lo)
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
+    lo.add_argument(
+        "--early-commit",
+        type=float,
+        choices=EARLY_COMMIT_ALPHAS,
+        metavar="ALPHA",
+        help="also commit as soon as one placement explains the whole path better than every "
+        "placement more than 1 m / 5 deg from it by a likelihood ratio of 1/ALPHA (the "
+        "uniqueness test; ALPHA one of 0.1, 0.01, 0.001, 1e-4, 1e-6; status lines show the "
+        "ratio as L=). Earlier commits at a risk the benchmark measures (README); default: "
+        "off, commit only when three windows that share no scan agree",
+    )
     lo.add_argument(
         "--no-scan-match",
         action="store_true",

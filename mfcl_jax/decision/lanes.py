@@ -35,6 +35,8 @@ from mfcl_jax.decision.params import DecisionParams, check_sets
 __all__ = [
     "OURS_VARIANTS",
     "COUNT_VARIANTS",
+    "UNIQUE_LANES",
+    "ROBOT_POLICIES",
     "BASELINES",
     "STRICT_IOU",
     "Lanes",
@@ -61,6 +63,10 @@ OURS_VARIANTS = {
 }
 # the variants the study and the tests decide by default: all but the uniqueness lanes
 COUNT_VARIANTS = tuple(n for n, v in OURS_VARIANTS.items() if v[6] == 0)
+# the uniqueness lanes by their error rate alpha
+UNIQUE_LANES = {v[6]: n for n, v in OURS_VARIANTS.items() if v[6] > 0}
+# what a robot may run: ours, alone or with the uniqueness test beside the count rule
+ROBOT_POLICIES = ("ours", *UNIQUE_LANES.values())
 BASELINES = ("single_shot", "support", "confidence", "gate_only")
 STRICT_IOU = 0.98  # "exact copy up to 2 % modelling noise"
 

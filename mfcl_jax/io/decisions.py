@@ -5,7 +5,10 @@ since ``mfcl localize`` reports them, ``pose`` (the robot's pose ``{x, y, yaw_de
 plan frame when COMMIT, else null), ``reason`` (why a DEFER / AMBIGUOUS, ``""`` when
 none) and ``alternatives`` (when AMBIGUOUS: the robot's pose ``{x, y, yaw_deg}`` in the plan
 frame under each explanation the layer could not tell apart, best first: the consensus winner
-``T*``, then the strongest competitor; null for other states) and ``segment`` (the odometry
+``T*``, then the strongest competitor; null for other states), ``unique`` (``mfcl localize
+--early-commit`` only: ``{llr, needed}``, the uniqueness test's ratio at the window, null where
+it did not run, "inf" / "-inf" where nothing competed / a veto held, and the ratio a commit
+needs) and ``segment`` (the odometry
 segment of the window: 0, plus one after every odometry jump; ``k`` is the window's index over
 the whole recording, it does not start again in a new segment). Files without the optional
 keys still read; a line that has them is checked.
@@ -25,7 +28,7 @@ __all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMM
 STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
 SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
 _KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
-_OPTIONAL = ("segment", "pose", "reason", "alternatives")
+_OPTIONAL = ("segment", "pose", "reason", "alternatives", "unique")
 # The order of the keys on a line: the window and its segment first.
 _ORDER = ("k", "segment", *_KEYS[1:], *_OPTIONAL[1:])
 
@@ -37,6 +40,20 @@ def _check_pose(where: str, name: str, a) -> None:
         raise DataError(f"{where}: {name}={a!r}, expected {{x, y, yaw_deg}} or null")
     if not all(isinstance(a[k], int | float) and math.isfinite(a[k]) for k in a):
         raise DataError(f"{where}: {name}={a!r} has a non-finite value")
+
+
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_unique(where: str, u) -> None:
+    if not isinstance(u, dict) or set(u) != {"llr", "needed"}:
+        raise DataError(f"{where}: unique={u!r}, expected {{llr, needed}} or null")
+    if not (u["llr"] is None or u["llr"] in ("inf", "-inf") or _number(u["llr"])):
+        raise DataError(f"{where}: unique.llr={u['llr']!r}, expected a number, "
+                        '"inf", "-inf" or null')  # fmt: skip
+    if not (_number(u["needed"]) and u["needed"] > 0):
+        raise DataError(f"{where}: unique.needed={u['needed']!r}, expected a number > 0")
 
 
 def _check(where: str, d: dict) -> dict:
@@ -75,6 +92,8 @@ def _check(where: str, d: dict) -> dict:
         seg = d["segment"]
         if not isinstance(seg, int) or isinstance(seg, bool) or seg < 0:
             raise DataError(f"{where}: segment={seg!r}, expected an integer >= 0")
+    if "unique" in d and d["unique"] is not None:
+        _check_unique(where, d["unique"])
     if "reason" in d and not isinstance(d["reason"], str):
         raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]
@@ -92,7 +111,7 @@ def decision_line(d: dict, where: str = "<decision>") -> str:
 
 def write_decisions(path, decisions) -> Path:
     """Writes decision dicts (keys ``k, t, state, anchor, symmetry, tau, B1, B2, margin`` and,
-    when present, ``segment``, ``pose``, ``reason`` and ``alternatives``) as JSON lines,
+    when present, ``segment``, ``pose``, ``reason``, ``alternatives`` and ``unique``) as JSON lines,
     validated first and written atomically (all or nothing)."""
     path = Path(path)
     lines = [decision_line(d, f"{path}: decision #{i}") for i, d in enumerate(decisions)]

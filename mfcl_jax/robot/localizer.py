@@ -21,7 +21,7 @@ import numpy as np
 from mfcl_jax import windows as W
 from mfcl_jax.decision import lattice, layer, rivals
 from mfcl_jax.decision.history import Caps
-from mfcl_jax.decision.lanes import make_lanes
+from mfcl_jax.decision.lanes import OURS_VARIANTS, ROBOT_POLICIES, make_lanes
 from mfcl_jax.decision.maps import decision_maps
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
 from mfcl_jax.decision.params import DecisionParams
@@ -51,12 +51,28 @@ class LocalizeParams:
         frontend: front-end parameters (static; one compilation per value).
         decision: decision thresholds (``None``: paper defaults).
         caps: the layer's capacities (``decision.history``: what a long run keeps).
+        policy: the lane decided: ``ours`` (commit on the count of agreeing windows) or a
+            uniqueness lane ``ours_unique*`` (also commit as soon as the whole path is unique
+            at its error rate, ``decision.lanes.UNIQUE_LANES``; ``mfcl localize
+            --early-commit``).
     """
 
     window: W.WindowParams = field(default_factory=W.WindowParams)
     frontend: FrontendParams = field(default_factory=FrontendParams)
     decision: DecisionParams | None = None
     caps: Caps = ROBOT_CAPS
+    policy: str = "ours"
+
+    def __post_init__(self):
+        if self.policy not in ROBOT_POLICIES:
+            raise ValueError(f"LocalizeParams: policy={self.policy!r}, expected one of "
+                             f"{list(ROBOT_POLICIES)}")  # fmt: skip
+
+    @property
+    def unique_llr(self) -> float | None:
+        """``log(1 / alpha)`` a uniqueness lane commits at; None for ``ours``."""
+        alpha = OURS_VARIANTS[self.policy][6]
+        return float(np.log(1.0 / alpha)) if alpha > 0 else None
 
     @property
     def d_s(self) -> float:
@@ -66,10 +82,13 @@ class LocalizeParams:
         return replace(self, window=replace(self.window, d_s=float(d_s)))
 
 
-def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None) -> dict:
+def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None,
+              unique_llr: float | None = None) -> dict:  # fmt: skip
     """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
     anchor (when COMMIT), the robot's pose and the reason (``status.record``); ``k`` the
-    window's index over the whole recording, ``segment`` (when given) its odometry segment."""
+    window's index over the whole recording, ``segment`` (when given) its odometry segment;
+    ``unique_llr`` (a uniqueness lane's ``log(1 / alpha)``) adds ``unique``: the test's ratio
+    at this window against that threshold (null where the test did not run)."""
     state = STATE_NAMES[int(dec.state)]
     kind = lattice.KIND_NAMES[int(dec.kind)]
     a = np.asarray(dec.anchor, np.float64)
@@ -90,7 +109,10 @@ def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment
         "margin": int(dec.margin),
     }
     rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
-    return status.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+    d = status.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+    if unique_llr is not None:
+        d["unique"] = status.unique_entry(float(dec.llr), unique_llr)
+    return d
 
 
 @dataclass(frozen=True)
@@ -113,6 +135,7 @@ class WindowResult:
         segment: the odometry segment of the window (0, plus one after every jump).
         points: ``(n, 2)`` the window's submap points in its frame ``S_k`` (``X`` places them
             in the odometry frame, ``T* X`` in the plan).
+        unique_llr: the uniqueness lane's threshold ``log(1 / alpha)`` (None for ``ours``).
     """
 
     k: int
@@ -129,12 +152,13 @@ class WindowResult:
     X_input: np.ndarray
     segment: int = 0
     points: np.ndarray | None = None
+    unique_llr: float | None = None
 
     def record(self, offset=(0.0, 0.0)) -> dict:
         """The decisions-file line (``record_of``; ``offset``: plan = local + offset), with
         the window's ``k`` over the recording and its odometry ``segment``."""
         return record_of(self.decision, self.k, self.t, self.X, self.X_input, offset,
-                         self.segment)  # fmt: skip
+                         self.segment, self.unique_llr)  # fmt: skip
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""
@@ -173,15 +197,15 @@ class Localizer:
     Args:
         floorplan: the ``Floorplan`` (frame B).
         params: ``LocalizeParams``.
-        variant: a key of ``decision.lanes.OURS_VARIANTS``.
     """
 
-    def __init__(self, floorplan, params: LocalizeParams | None = None, variant: str = "ours"):
+    def __init__(self, floorplan, params: LocalizeParams | None = None):
         self.floorplan = floorplan
         self.params = params or LocalizeParams()
         fe = FrontEnd([floorplan], self.params.frontend, chunk=1)
         self._feats = jax.tree.map(jnp.asarray, fe.features(0))
-        p, lanes, spec = make_lanes(self.params.decision, (variant,), primary=variant)
+        policy = self.params.policy
+        p, lanes, spec = make_lanes(self.params.decision, (policy,), primary=policy)
         maps = jax.tree.map(jnp.asarray, decision_maps(floorplan, min_iou=spec.min_iou))
         fields = jax.tree.map(jnp.asarray, rivals.rival_fields(floorplan))
         n_img = rivals.image_size([floorplan]) if spec.searches else 0
@@ -253,6 +277,7 @@ class Localizer:
                     n_points=len(w.points[0]), voxel=float(w.voxel[0]), n_candidates=int(n_cand),
                     frontend_reason=int(reason), rethinned=bool(W.rethinned(w)[0]),
                     X_input=np.asarray(w.X_input[0]), segment=int(seg), points=w.points[0],
+                    unique_llr=self.params.unique_llr,
                 )  # fmt: skip
 
     def _inputs(self, pts, org, X, t, traj, traj_mask, start) -> tuple:

@@ -86,7 +86,8 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
     by_id = {id(fp): fp for fp in floorplans}
     unique = [by_id[i] for i in plans]
     fe = FrontEnd(unique, params.frontend, chunk=16)
-    p, lanes, spec = make_lanes(params.decision, ("ours",), baselines=False)
+    p, lanes, spec = make_lanes(params.decision, (params.policy,), baselines=False,
+                                primary=params.policy)  # fmt: skip
     buildings = stack_buildings(unique, spec)
     cap = W.bucket(params.window.capacity, 256)
     # chunks of equal size (20 recordings: 7, 7, 6), the last padded to it, so that every
@@ -122,7 +123,7 @@ def localize_batch(floorplans, seqs, params: LocalizeParams | None = None, progr
                     d = jax.tree.map(lambda a, r=r, k=k: a[r, k, 0], dec)
                     seg = int(w.segments[w.bounds[k, 0]])  # k + 1: over the whole recording
                     res.records.append(record_of(d, k + 1, float(w.t[k]), w.X[k], w.X_input[k],
-                                                 offset, seg))  # fmt: skip
+                                                 offset, seg, params.unique_llr))  # fmt: skip
                     sub = int(batch.runs.submap[r, k])
                     thin = f" rethinned voxel={w.voxel[k]:.2f}" if W.rethinned(w)[k] else ""
                     res.details.append(f"pts={len(w.points[k])}{thin} cands={int(valid[sub])}")

@@ -21,6 +21,7 @@ __all__ = [
     "markdown",
     "robot_pose",
     "record",
+    "unique_entry",
     "status_line",
     "summary_table",
 ]
@@ -138,6 +139,14 @@ TERM_TEXT = {
     "be contradicted by the scans of some window and favoured by none.",
     "tau": "the period (tx, ty in metres) of a repeated layout: the robot's position is known "
     "only up to whole multiples of tau (AMBIGUOUS translation).",
+    "L": "with --early-commit only: the uniqueness test's log-likelihood ratio of the whole "
+    "path so far, its best placement against the best one more than 1 m / 5 deg from it, as "
+    "L=ratio/threshold (threshold log(1/alpha)); the layer also commits once the ratio reaches "
+    "the threshold and the gate, the newest window's best registration and the consensus do "
+    "not object (L=vetoed where one did). L=- where the test did not run at that window "
+    "(it runs where the newest window has a best registration that a consensus of two or "
+    "more windows does not contradict, at most 8 times per odometry segment; after that only "
+    "the count of windows commits).",
 }
 
 EXAMPLE = (
@@ -201,7 +210,11 @@ def markdown() -> str:
         'of the robot in the plan frame when COMMIT, else `null`), `reason` (`""` when '
         "none) and `alternatives` (when AMBIGUOUS: a list of the robot's poses `{x, y, "
         "yaw_deg}` in the plan frame, one per explanation the layer could not tell apart, "
-        "the best placement first, then the strongest competitor; `null` for other states).",
+        "the best placement first, then the strongest competitor; `null` for other states). "
+        "With `--early-commit` every line also holds `unique`: `{llr, needed}`, the "
+        'uniqueness test\'s ratio at that window (`null` where it did not run, `"inf"` '
+        'where no other placement was found; `"-inf"` where a veto held) and the ratio a '
+        "commit needs.",
     ]
     return "\n".join(out) + "\n"
 
@@ -256,6 +269,19 @@ def record(
     return d
 
 
+def unique_entry(llr: float, needed: float) -> dict:
+    """The decisions file's ``unique`` entry: the uniqueness test's ratio at a window
+    (``llr``: NaN where it did not run, written null; +inf where no other placement was
+    found, written "inf") and the ratio a commit needs (``needed``, ``log(1 / alpha)``)."""
+    if math.isnan(llr):
+        value = None
+    elif math.isinf(llr):
+        value = "inf" if llr > 0 else "-inf"
+    else:
+        value = round(float(llr), 4)
+    return {"llr": value, "needed": round(float(needed), 4)}
+
+
 def _places(d: dict) -> str:
     """``"; robot at (x, y, h) or (x, y, h)"``: where the explanations an AMBIGUOUS record
     lists place the robot (empty when it lists fewer than two)."""
@@ -286,6 +312,11 @@ def status_line(d: dict, detail: str = "") -> str:
     else:
         what = "one candidate place; too few agreeing windows yet"
     tail = f"B1={d['B1']} B2={d['B2']} margin={d['margin']}"
+    if d.get("unique"):  # --early-commit: the uniqueness test's ratio against its threshold
+        u = d["unique"]
+        v = u["llr"]
+        ratio = {None: "-", "-inf": "vetoed"}.get(v, v) if not isinstance(v, float) else f"{v:.2f}"
+        tail += f" L={ratio}/{u['needed']:.2f}"
     if d.get("segment"):  # after an odometry jump (segment 0 is not shown)
         tail += f" segment={d['segment']}"
     tail += f" {detail}" if detail else ""

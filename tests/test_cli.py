@@ -11,19 +11,19 @@ from mfcl_jax.cli import main
 from mfcl_jax.floorplan import save_geojson
 from mfcl_jax.io import read_decisions, read_tum
 from mfcl_jax.robot.status import robot_pose
-from mfcl_jax.sim.scenes import get_scene
+from mfcl_jax.sim.scenes import symmetric_bays
 
-# 209 -> 208 -> 207 along the corridor side (the start of the scene's T1): about 28 m, 11
-# windows of 6 m; AMBIGUOUS (the 14.6 m period of 207/208) until the last window commits.
-WAYPOINTS = [(37.4, 6.4), (34.0, 7.2), (31.0, 8.6), (26.0, 8.6), (21.0, 6.2), (16.2, 8.6),
-             (11.6, 8.6)]  # fmt: skip
+# R1 -> door line -> R4 of the symmetric bays (the plan of the other ``mfcl localize`` tests,
+# so one compiled robot step serves them all): 109 scans, 11 windows of 6 m; DEFER (the bays'
+# 7.3 m period) until the walk nears the far wall, the last windows COMMIT.
+WAYPOINTS = [(1.0, 4.2), (3.0, 1.8), (27.0, 1.8)]
 
 
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
     root = tmp_path_factory.mktemp("cli")
-    plan = root / "three.geojson"
-    save_geojson(get_scene("three_rooms").floorplan, plan)
+    plan = root / "bays.geojson"
+    save_geojson(symmetric_bays().floorplan, plan)
     wp = root / "wp.csv"
     wp.write_text("x,y\n" + "\n".join(f"{x},{y}" for x, y in WAYPOINTS) + "\n")
     ds = root / "ds"
@@ -118,7 +118,7 @@ def test_simulate_bad_csv(sim, tmp_path, capsys, body, where):
 def test_simulate_bad_inputs(sim, tmp_path, capsys):
     _, plan, wp, ds = sim
     through_wall = tmp_path / "wall.csv"
-    through_wall.write_text("6,5\n20,5\n")  # crosses the 207/208 partition at x = 13.8
+    through_wall.write_text("4,5\n10,5\n")  # crosses the R1/R2 partition at x = 7.3
     _fails(
         [
             "simulate",

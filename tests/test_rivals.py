@@ -193,10 +193,11 @@ def test_robot_and_batch_search_at_the_same_windows_and_agree():
     from mfcl_jax.decision.frame import decide
     from mfcl_jax.frontend.driver import FrontEnd
     from mfcl_jax.robot.localizer import Localizer
-    from mfcl_jax.sim.scenes import three_rooms as scene_three_rooms
+    from mfcl_jax.sim.scenes import symmetric_bays
     from mfcl_jax.sources.simulated import simulate
 
-    scene = scene_three_rooms()
+    # the plan of the ``mfcl localize`` tests: their compiled robot step serves this one too
+    scene = symmetric_bays()
     rec = simulate(scene, [next(iter(scene.trajectories))], [0])[0]
     fp = scene.floorplan
     loc = Localizer(fp)

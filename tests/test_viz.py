@@ -18,14 +18,13 @@ from mfcl_jax.floorplan.load import load_floorplan
 from mfcl_jax.io import read_decisions
 from mfcl_jax.robot import status
 from mfcl_jax.robot.viz import FRAME, TOPICS
-from mfcl_jax.sim.scenes import get_scene
+from mfcl_jax.sim.scenes import symmetric_bays
 from tests._mcap import _cloud, _no_leftovers, _read, _xyyaw
 
-# The walk of tests/test_cli.py along rooms 209 -> 208 -> 207: 11 windows of 6 m, the last ones
-# COMMIT (what the layer decides before is its business: AMBIGUOUS windows are checked when
-# there are some, and always in the writer's own test, test_viz_writer.py).
-WAYPOINTS = [(37.4, 6.4), (34.0, 7.2), (31.0, 8.6), (26.0, 8.6), (21.0, 6.2), (16.2, 8.6),
-             (11.6, 8.6)]  # fmt: skip
+# The walk of tests/test_cli.py through the symmetric bays R1 -> R4: 11 windows of 6 m, the
+# last ones COMMIT (what the layer decides before is its business: AMBIGUOUS windows are
+# checked when there are some, and always in the writer's own test, test_viz_writer.py).
+WAYPOINTS = [(1.0, 4.2), (3.0, 1.8), (27.0, 1.8)]
 
 
 # ----------------------------------------------------------------------------- the CLI run
@@ -33,8 +32,8 @@ WAYPOINTS = [(37.4, 6.4), (34.0, 7.2), (31.0, 8.6), (26.0, 8.6), (21.0, 6.2), (1
 def run(tmp_path_factory):
     """One simulated walk, localized once with ``--viz`` (the only localize run here)."""
     root = tmp_path_factory.mktemp("viz")
-    plan = root / "three.geojson"
-    save_geojson(get_scene("three_rooms").floorplan, plan)
+    plan = root / "bays.geojson"
+    save_geojson(symmetric_bays().floorplan, plan)
     wp = root / "wp.csv"
     wp.write_text("x,y\n" + "\n".join(f"{x},{y}" for x, y in WAYPOINTS) + "\n")
     ds, dec, viz = root / "ds", root / "dec.jsonl", root / "out" / "run.mcap"

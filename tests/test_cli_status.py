@@ -241,6 +241,16 @@ def test_early_commit_selects_the_uniqueness_lane_of_its_alpha(capsys):
     assert "invalid choice: 0.05" in capsys.readouterr().err
     with pytest.raises(ValueError, match="policy='paper', expected one of"):
         LocalizeParams(policy="paper")
+    # the robot builds its one lane from the policy: the test on, at log(1 / alpha)
+    from mfcl_jax.robot.localizer import Localizer
+    from mfcl_jax.sim.scenes import symmetric_bays
+
+    fp = symmetric_bays().floorplan
+    for args, unique, llr in ((["--early-commit", "1e-2"], True, math.log(1e2)), ([], False, 0)):
+        loc = Localizer(fp, localize_params(parse(["localize", "d", *args])))
+        lanes, spec = loc._init[3], loc._init[4]  # (maps, params, caps, lanes, spec, ...)
+        assert spec.unique == unique and len(spec.names) == 1
+        assert float(lanes.unique_llr[0]) == pytest.approx(llr, rel=1e-6)
 
 
 def test_the_uniqueness_ratio_is_written_and_shown():

@@ -14,6 +14,10 @@ Cases (all with the same, untuned ``LocalizeParams``; d_s = 6 m):
 * Intel lab, raw ROS bag: ``sources.logs.bag_recordings``: every real scan with the bag's
   real, drifting odometry; ground truth from the corrected log, whose scans are the bag's scans
   at a constant time offset (checked scan by scan, see ``sources.bagtruth``).
+
+Every case runs twice: as ``mfcl localize`` does by default (``ours``) and as ``mfcl localize
+--early-commit 1e-3`` does (``EARLY``: the uniqueness lane beside the count rule); the main
+tables are the default's, a last table compares the two.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ __all__ = ["run_all", "main"]
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel log
+EARLY = "ours_unique"  # mfcl localize --early-commit 1e-3
 
 
 def _log(msg: str) -> None:
@@ -54,25 +59,31 @@ class Case:
 
 
 def _run(loc: Localizer, case: Case, fp, out: Path) -> dict:
+    """One case through ``loc``: decisions written (``<group>__<case>[.<policy>].jsonl``),
+    scored, drawn (the default policy only) and summarised in a row."""
     t0 = time.perf_counter()
+    policy = loc.params.policy
     results = list(loc.run(case.seq))
     decs = [r.record() for r in results]  # anchors against the input odometry
     from mfcl_jax.io import write_decisions
 
-    write_decisions(out / "decisions" / f"{case.group}__{case.name}.jsonl", decs)
+    tag = "" if policy == "ours" else f".{policy}"
+    write_decisions(out / "decisions" / f"{case.group}__{case.name}{tag}.jsonl", decs)
     scored = score_decisions(
         decs, case.seq.times, case.seq.odometry, case.gt_times, case.gt, fp, where=case.name
     )
     s = summarize(scored)
     dt = time.perf_counter() - t0
     states = "".join({"COMMIT": "C", "DEFER": "d", "AMBIGUOUS": "a"}[d["state"]] for d in decs)
-    _log(f"  {case.group}/{case.name}: {len(decs)} windows in {dt:.1f} s  {states}")
-    _plot(fp, case, scored, out / "figures" / f"{case.group}__{case.name}.png")
+    _log(f"  {case.group}/{case.name} ({policy}): {len(decs)} windows in {dt:.1f} s  {states}")
+    if policy == "ours":
+        _plot(fp, case, scored, out / "figures" / f"{case.group}__{case.name}.png")
     length = float(np.sum(np.hypot(*np.diff(case.gt[:, :2], axis=0).T)))
     com = scored[scored["state"] == "COMMIT"]
     return dict(
         group=case.group,
         case=case.name,
+        policy=policy,
         length_m=round(length, 1),
         windows=s["windows"],
         first_commit_k=s["first_commit_k"],
@@ -97,7 +108,7 @@ def _plot(fp, case: Case, scored, png: Path) -> None:
     plot_run(png, fp, case.gt, case.seq.odometry, scored, name, offset=(0.0, 0.0))
 
 
-def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict]:
+def _ifc_cases(spec, params: list[LocalizeParams], out: Path, seeds=(0,)) -> list[dict]:
     from mfcl_jax.floorplan.load import load_floorplan
     from mfcl_jax.sources.simulated import simulate_walk
     from mfcl_jax.sources.walks import check_waypoints
@@ -105,7 +116,7 @@ def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict
     t0 = time.perf_counter()
     fp = load_floorplan(DATA / spec["file"], storey=spec["storey"])
     _log(f"{spec['building']}: floor plan loaded in {time.perf_counter() - t0:.1f} s")
-    loc = Localizer(fp, params)
+    locs = [Localizer(fp, p) for p in params]
     rows = []
     for name, (rooms, wp, note) in spec["walks"].items():
         wp = np.asarray(wp, float) if wp is not None else route(fp, rooms)
@@ -114,7 +125,7 @@ def _ifc_cases(spec, params: LocalizeParams, out: Path, seeds=(0,)) -> list[dict
             rec = simulate_walk(fp, wp, seed=seed, tag=name)
             seq = ScanSequence(rec.seq.times, rec.seq.scans, rec.seq.odometry, name)
             case = Case(spec["building"], name, note, seq, rec.truth.times, rec.truth.poses)
-            rows.append(_run(loc, case, fp, out))
+            rows += [_run(loc, case, fp, out) for loc in locs]
     return rows
 
 
@@ -125,7 +136,7 @@ def _recording_case(group: str, rec, note: str) -> Case:
 
 
 def _intel_cases(
-    params: LocalizeParams, out: Path, n_windows: int = 3, length: float = 80.0
+    params: list[LocalizeParams], out: Path, n_windows: int = 3, length: float = 80.0
 ) -> list[dict]:
     from mfcl_jax.report.plots_floorplan import show_floorplan
     from mfcl_jax.sources.logs import full_map, log_recordings
@@ -143,11 +154,12 @@ def _intel_cases(
     ):
         note_w = f"{note} (path on free cells {rec.meta['map_coverage']:.0%})"
         case = _recording_case("Intel_log", rec, note_w)
-        rows.append(_run(Localizer(rec.floorplan, params), case, rec.floorplan, out))
+        rows += [_run(Localizer(rec.floorplan, p), case, rec.floorplan, out) for p in params]
     return rows
 
 
-def _bag_cases(params: LocalizeParams, out: Path, n_windows: int = 2, length: float = 80.0):
+def _bag_cases(params: list[LocalizeParams], out: Path, n_windows: int = 2,
+               length: float = 80.0):  # fmt: skip
     from mfcl_jax.sources.logs import bag_recordings
 
     t0 = time.perf_counter()
@@ -164,15 +176,16 @@ def _bag_cases(params: LocalizeParams, out: Path, n_windows: int = 2, length: fl
             f"(path on free cells {m['map_coverage']:.0%})"
         )
         case = _recording_case("Intel_bag", rec, note)
-        rows.append(_run(Localizer(rec.floorplan, params), case, rec.floorplan, out))
+        rows += [_run(Localizer(rec.floorplan, p), case, rec.floorplan, out) for p in params]
     return rows, info
 
 
 def _write_tables(rows: list[dict], info: dict, out: Path) -> None:
     from mfcl_jax.io.atomic import atomic_write_text
 
-    df = pd.DataFrame(rows)
-    atomic_write_text(out / "summary.csv", df.to_csv(index=False))
+    every = pd.DataFrame(rows)
+    atomic_write_text(out / "summary.csv", every.to_csv(index=False))
+    df = every[every["policy"] == "ours"]
     cols = [
         "case",
         "length_m",
@@ -200,6 +213,20 @@ def _write_tables(rows: list[dict], info: dict, out: Path) -> None:
         for _, r in sub.iterrows():
             md.append(f"- `{r['case']}` ({r['note']}): `{r['states']}` ({r['seconds']} s)")
         md.append("")
+    early = every[every["policy"] == EARLY]
+    if len(early):
+        both = df.merge(early, on=["group", "case"], suffixes=("", "_early"))
+        keep = ["group", "case", "windows", "first_commit_k", "first_commit_k_early", "verdict",
+                "verdict_early", "commits_correct", "commits_correct_early"]  # fmt: skip
+        md += [
+            "## Committing early (`mfcl localize --early-commit 1e-3`)",
+            "",
+            "The same cases with the uniqueness lane beside the count rule (`_early` columns)",
+            "against the default:",
+            "",
+            both[keep].to_markdown(index=False, floatfmt=".0f"),
+            "",
+        ]
     if info:
         md += [
             "## Intel bag ground truth",
@@ -216,7 +243,7 @@ def run_all(out="results/real", quick: bool = False) -> pd.DataFrame:
     """Runs every case, writes ``summary.csv``, ``summary.md``, ``decisions/``,
     ``figures/`` and ``intel_map/`` under ``out``; returns the summary table."""
     out = Path(out)
-    params = LocalizeParams()
+    params = [LocalizeParams(), LocalizeParams(policy=EARLY)]
     t0 = time.perf_counter()
     rows: list[dict] = []
     rows += _ifc_cases(DUPLEX, params, out)

@@ -37,6 +37,7 @@ __all__ = [
     "COUNT_VARIANTS",
     "UNIQUE_LANES",
     "ROBOT_POLICIES",
+    "unique_threshold",
     "BASELINES",
     "STRICT_IOU",
     "Lanes",
@@ -69,6 +70,13 @@ UNIQUE_LANES = {v[6]: n for n, v in OURS_VARIANTS.items() if v[6] > 0}
 ROBOT_POLICIES = ("ours", *UNIQUE_LANES.values())
 BASELINES = ("single_shot", "support", "confidence", "gate_only")
 STRICT_IOU = 0.98  # "exact copy up to 2 % modelling noise"
+
+
+def unique_threshold(name: str) -> float:
+    """The log-likelihood ratio ``log(1 / alpha)`` at which variant ``name``'s uniqueness test
+    commits; 0 for a variant without the test."""
+    alpha = OURS_VARIANTS[name][6]
+    return float(np.log(1.0 / alpha)) if alpha > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -157,7 +165,7 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
             bm = float(s.b_min) if bm < 0 else bm
             dm = float(s.delta_min) if dm < 0 else dm
             mode = modes.index((ug, syms.index(q)))
-            thr = float(np.log(1.0 / alpha)) if uu else 0.0
+            thr = unique_threshold(n)
             cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode, uu, thr))
             names.append(n)
             lane_sets.append(i)

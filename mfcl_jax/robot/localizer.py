@@ -21,7 +21,7 @@ import numpy as np
 from mfcl_jax import windows as W
 from mfcl_jax.decision import lattice, layer, rivals
 from mfcl_jax.decision.history import Caps
-from mfcl_jax.decision.lanes import OURS_VARIANTS, ROBOT_POLICIES, make_lanes
+from mfcl_jax.decision.lanes import ROBOT_POLICIES, make_lanes, unique_threshold
 from mfcl_jax.decision.maps import decision_maps
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
 from mfcl_jax.decision.params import DecisionParams
@@ -71,8 +71,7 @@ class LocalizeParams:
     @property
     def unique_llr(self) -> float | None:
         """``log(1 / alpha)`` a uniqueness lane commits at; None for ``ours``."""
-        alpha = OURS_VARIANTS[self.policy][6]
-        return float(np.log(1.0 / alpha)) if alpha > 0 else None
+        return unique_threshold(self.policy) or None
 
     @property
     def d_s(self) -> float:

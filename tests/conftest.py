@@ -103,3 +103,23 @@ def _compilation_cache(tmp_path_factory):
         os.environ.pop("MFCL_CACHE_DIR", None)
     else:
         os.environ["MFCL_CACHE_DIR"] = old
+
+
+# Cyclone DDS on loopback only, unicast to this machine (no multicast leaves it), in a domain
+# of this test process's own so that parallel workers do not hear each other.
+LOOPBACK_DDS = (
+    '<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
+    "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto"
+    '</ParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain>'
+    "</CycloneDDS>"
+)
+
+
+@pytest.fixture
+def ros2_env(monkeypatch):
+    """ROS 2 over DDS on loopback in a domain of this worker's own (``ROS_DOMAIN_ID``,
+    ``CYCLONEDDS_URI``: read by the node subprocesses too); yields the domain."""
+    domain = 100 + os.getpid() % 100
+    monkeypatch.setenv("CYCLONEDDS_URI", LOOPBACK_DDS)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    yield domain

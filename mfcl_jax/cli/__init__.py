@@ -12,6 +12,7 @@ import sys
 from mfcl_jax.cli.evaluate import add_evaluate_command
 from mfcl_jax.cli.floorplan import add_floorplan_commands
 from mfcl_jax.cli.localize import add_localize_command
+from mfcl_jax.cli.ros2 import add_ros2_commands
 from mfcl_jax.cli.simulate import add_simulate_command
 
 __all__ = ["main", "build_parser"]
@@ -26,6 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_localize_command(sub)
     add_evaluate_command(sub)
     add_simulate_command(sub)
+    add_ros2_commands(sub)
     return parser
 
 

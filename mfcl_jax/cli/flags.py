@@ -10,7 +10,7 @@ import argparse
 import math
 from pathlib import Path
 
-__all__ = ["lidar_offset_arg", "lidar_mount_arg", "add_input_flags"]
+__all__ = ["lidar_offset_arg", "lidar_mount_arg", "add_input_flags", "add_band_flags"]
 
 
 def _numbers(text: str, n: int, what: str) -> list[float]:
@@ -77,6 +77,11 @@ def add_input_flags(lo) -> None:
     lo.add_argument("--base-frame", default="base_link", help="--tf-static parent (base_link)")
     add_rosmap_flags(lo)
     lo.add_argument("--storey", help="IFC storey name or elevation")
+    add_band_flags(lo)
+
+
+def add_band_flags(lo) -> None:
+    """The 3-D height band flags (``cli.inputs.planar_params`` reads them)."""
     g = lo.add_argument_group(
         "3-D clouds",
         "Scans whose z values span more than 0.3 m (median over the scans) are 3-D clouds: "

@@ -6,7 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from mfcl_jax.windows.keyframes import keyframes, odometry_segments, segment_bounds
+from mfcl_jax.windows.keyframes import (
+    extend_keyframes,
+    keyframes,
+    odometry_segments,
+    segment_bounds,
+)
 from mfcl_jax.windows.odometry import Odometer, extend_many
 from mfcl_jax.windows.submaps import WindowParams, Windows, _windows, window
 
@@ -62,6 +67,8 @@ class Cutter:
         self.params = params or WindowParams()
         self.odometer = Odometer(self.params.scan_match)
         self.n_windows = 0
+        self._kf: list[int] = []  # keyframes of the scans looked at so far (``_seen``)
+        self._seen = 0
 
     def estimate(self, seq) -> int:
         """Windows of ``seq`` by the input odometry alone (the LiDAR odometry's jump test
@@ -76,8 +83,11 @@ class Cutter:
         """Yields the windows of ``seq`` completed since the last call (one ``Windows`` each,
         with the keyframes, odometry and segments so far)."""
         p = self.params
-        kf = keyframes(seq.odometry, p.keyframe_spacing, p.keyframe_turn_deg)
-        raw = np.asarray(seq.odometry, np.float64)[kf]
+        x = np.asarray(seq.odometry, np.float64)
+        extend_keyframes(x, self._kf, self._seen, p.keyframe_spacing, p.keyframe_turn_deg)
+        self._seen = len(x)
+        kf = np.asarray(self._kf, int)
+        raw = x[kf]
         seg_in = odometry_segments(raw, np.asarray(seq.times)[kf])
         odo = self.odometer
         step = p.scan_match.chunk

@@ -29,14 +29,23 @@ __all__ = [
 def keyframes(odometry, spacing: float = 0.20, turn_deg: float = 20.0) -> np.ndarray:
     """Indices ``(M,)`` of the scans kept as keyframes (the first scan is always kept)."""
     x = np.asarray(odometry, np.float64)
-    keep = [0]
+    return np.asarray(extend_keyframes(x, [0] if len(x) else [], 1, spacing, turn_deg), int)
+
+
+def extend_keyframes(x, keep: list, start: int, spacing: float, turn_deg: float) -> list:
+    """``keep`` (the keyframes among ``x[:start]``, a list) extended over ``x[start:]`` in
+    place: the keyframes of a recording that grows, each scan looked at once (the rule is
+    causal, so the result is ``keyframes(x)``)."""
     turn = np.deg2rad(turn_deg)
-    for i in range(1, len(x)):
+    if not keep and len(x):
+        keep.append(0)
+        start = 1
+    for i in range(max(start, 1), len(x)):
         a = x[keep[-1]]
         dyaw = abs((x[i, 2] - a[2] + np.pi) % (2 * np.pi) - np.pi)
         if np.hypot(*(x[i, :2] - a[:2])) >= spacing or dyaw >= turn:
             keep.append(i)
-    return np.asarray(keep, int)
+    return keep
 
 
 def travelled(poses, segments=None) -> np.ndarray:

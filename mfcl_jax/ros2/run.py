@@ -1,0 +1,150 @@
+"""What ``mfcl ros2`` and ``mfcl play`` do with their flags: checks first (nothing starts
+on a bad flag or plan), then the node until a signal, then the outputs, written atomically."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from mfcl_jax.io.errors import DataError
+
+__all__ = ["run_node", "run_play", "node_params"]
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def node_params(args):
+    """``NodeParams`` from the flags (checked)."""
+    from mfcl_jax.cli.inputs import planar_params
+    from mfcl_jax.ros2.dds import dds_topic
+    from mfcl_jax.ros2.feed import FeedParams
+    from mfcl_jax.ros2.node import NodeParams
+    from mfcl_jax.sources.planar import mount_3d
+
+    if not (math.isfinite(args.silence) and args.silence > 0):
+        raise DataError(f"ros2: --silence must be > 0 s, got {args.silence}")
+    for flag in ("scan_topic", "cloud_topic", "odom_topic", "pose_topic", "status_topic"):
+        value = getattr(args, flag)
+        if value is not None:
+            try:
+                dds_topic(value)
+            except DataError as e:
+                raise DataError(f"ros2: --{flag.replace('_', '-')}: {e}") from None
+    if args.lidar_offset is not None and args.lidar_mount is not None:
+        raise DataError("ros2: give --lidar-offset or --lidar-mount, not both")
+    mount3d, planar_mount = None, args.lidar_offset
+    if args.lidar_mount is not None:
+        planar_mount, mount3d = mount_3d(*args.lidar_mount)
+    feed = FeedParams(
+        scan_topic=args.cloud_topic or args.scan_topic, cloud=args.cloud_topic is not None,
+        odom_topic=args.odom_topic, odom_frames=(args.odom_frame, args.base_frame),
+        base_frame=args.base_frame, mount=planar_mount, planar=planar_params(args, mount3d),
+        silence_s=float(args.silence),
+    )  # fmt: skip
+    return NodeParams(feed=feed, pose_topic=args.pose_topic, status_topic=args.status_topic,
+                      map_frame=args.map_frame, publish_tf=args.publish_tf)  # fmt: skip
+
+
+def run_node(args, progress) -> int:
+    """``mfcl ros2``: runs until SIGINT / SIGTERM; exit 130 / 143 after writing the outputs."""
+    from mfcl_jax.cli.common import check_viz, localize_params, start, verdict, viz_add
+    from mfcl_jax.cli.signals import StopSignals, stop_name, stop_status
+    from mfcl_jax.io import check_output, write_decisions
+
+    params = node_params(args)
+    inputs = [args.floorplan]
+    if args.out is not None:
+        check_output(args.out, inputs=inputs)
+    if args.viz is not None:
+        check_viz(args.viz, [*inputs, args.out])
+    with StopSignals() as signals:
+        node, viz, why = None, None, None
+        try:
+            from mfcl_jax.ros2.dds import Bus
+            from mfcl_jax.ros2.node import Node
+
+            bus = Bus()
+            node = Node(bus, params)
+            _err(f"mfcl: ROS 2 domain {bus.domain}: reading {params.feed.scan_topic}, "
+                 f"{params.feed.odom_topic}; publishing {params.pose_topic}, "
+                 f"{params.status_topic}")  # fmt: skip
+            start(progress)
+            from mfcl_jax.floorplan.load import load_floorplan
+            from mfcl_jax.robot.localizer import Localizer
+            from mfcl_jax.robot.viz import VizWriter
+
+            with progress.stage(f"loading {args.floorplan}"):
+                fp = load_floorplan(args.floorplan, storey=args.storey,
+                                    free_thresh=args.free_thresh,
+                                    occupied_thresh=args.occupied_thresh)  # fmt: skip
+            lp = localize_params(args)
+            viz = VizWriter(args.viz, fp) if args.viz is not None else None
+
+            def on_window(result, rec):
+                nonlocal viz
+                viz = viz_add(viz, result, rec)
+                if not args.quiet:
+                    _err(result.status(fp.offset))
+
+            node.on_window = on_window
+            node.run(Localizer(fp, lp))
+        except KeyboardInterrupt as e:
+            why = e
+        except Exception as e:
+            if node is not None and isinstance(e, DataError | OSError | ValueError):
+                node._event("stop", f"error: {e}")
+            raise
+        with signals.writing():
+            records = node.records if node is not None else []
+            if node is not None:
+                node._event("stop", f"stopped by {stop_name(why)}")
+            _err(f"mfcl: stopped by {stop_name(why)}: {verdict(records)}")
+            if node is not None:
+                counts = {k: v for k, v in node.feed.counts.items() if v}
+                if counts:
+                    _err("mfcl: messages left out: " +
+                         ", ".join(f"{v} {k}" for k, v in counts.items()))  # fmt: skip
+            if args.out is not None:
+                write_decisions(args.out, records)
+                _err(f"decisions: {args.out}")
+            if viz is not None:
+                _err(f"viz: {viz.close()}")
+    return stop_status(why)
+
+
+def run_play(args) -> int:
+    """``mfcl play DATASET``: publishes the dataset once, at ``--rate``."""
+    import numpy as np
+
+    from mfcl_jax.cli.signals import StopSignals, stop_status
+    from mfcl_jax.io.tf_static import sensor_poses
+    from mfcl_jax.io.tum import read_tum
+    from mfcl_jax.ros2.dds import Bus
+    from mfcl_jax.ros2.play import Player, PlayParams
+    from mfcl_jax.se2 import inverse_host
+    from mfcl_jax.sources.dataset import load_dataset
+
+    if not (math.isfinite(args.rate) and args.rate > 0):
+        raise DataError(f"play: --rate must be > 0, got {args.rate}")
+    ds = load_dataset(args.dataset)
+    o_times, o_poses = read_tum(args.dataset / "odometry.tum")  # at its own rate
+    base = sensor_poses(o_poses, inverse_host(np.asarray(args.lidar_offset)))
+    bus = Bus()
+    player = Player(bus, PlayParams(scan_topic=args.scan_topic, cloud=args.cloud,
+                                    odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+    player.mount(args.lidar_offset)
+    if not player.wait_for_readers(args.wait):
+        _err(f"mfcl: no reader of {args.scan_topic} and {args.odom_topic} after {args.wait:g} s; "
+             "playing anyway")  # fmt: skip
+    _err(f"mfcl: ROS 2 domain {bus.domain}: playing {len(ds.times)} scans of {args.dataset} "
+         f"at {args.rate:g}x")  # fmt: skip
+    with StopSignals():
+        try:
+            player.play(ds.times, ds.scans, o_times, base, offset=args.time_offset)
+        except KeyboardInterrupt as e:
+            _err(f"mfcl: stopped after {player.sent} messages")
+            return stop_status(e)
+    _err(f"mfcl: {player.sent} messages published")
+    return 0

@@ -114,9 +114,13 @@ class VizWriter:
     """Collects a run window by window and writes it as one MCAP file.
 
     Args:
-        path: the ``.mcap`` file to write (checked by the caller with ``io.check_output``).
+        path: the ``.mcap`` file to write (checked by the caller with ``io.check_output``),
+            or None: no file (``live`` only).
         floorplan: the run's ``Floorplan``; drawn once, at the start.
         start: time (s) of the plan message; default the first window's time.
+        live: also send every message as it is made to ``live.put(topic, schema, log_ns,
+            json_bytes)`` (``robot.viz_live.FoxgloveLive``: the same content over
+            Foxglove's WebSocket protocol).
 
     Raises:
         DataError: a ``start`` that cannot be an MCAP log time (negative, NaN).
@@ -129,10 +133,11 @@ class VizWriter:
         viz.close()
     """
 
-    def __init__(self, path, floorplan, start: float | None = None):
+    def __init__(self, path, floorplan, start: float | None = None, live=None):
         from mcap.writer import Writer
 
-        self.path, self.floorplan = Path(path), floorplan
+        self.path = None if path is None else Path(path)
+        self.floorplan, self._live = floorplan, live
         self._offset = np.asarray(floorplan.offset, np.float64)
         self._start = None if start is None else float(start)
         if start is not None:
@@ -165,14 +170,18 @@ class VizWriter:
 
     def _ns(self, t: float, what: str) -> int:
         if not (math.isfinite(t) and t >= 0):
+            where = self.path or "viz"
             raise DataError(
-                f"{self.path}: {what} is at t={t} s; MCAP log times must be finite and >= 0 s"
+                f"{where}: {what} is at t={t} s; MCAP log times must be finite and >= 0 s"
             )
         return round(t * 1e9)
 
     def _put(self, topic: str, ns: int, msg: dict) -> None:
         data = json.dumps(msg, separators=(",", ":"), allow_nan=False).encode()
-        self._writer.add_message(self._channels[topic], ns, data, ns)
+        if self.path is not None:
+            self._writer.add_message(self._channels[topic], ns, data, ns)
+        if self._live is not None:
+            self._live.put(topic, TOPICS[topic], ns, data)
 
     def _plan(self, ns: int) -> None:
         fp, off = self.floorplan, self._offset
@@ -290,6 +299,8 @@ class VizWriter:
             self._plan_written = True
         self._writer.finish()
         self._closed = True
+        if self.path is None:
+            return None
         return atomic_write(self.path, self._buf.getvalue())
 
     def discard(self) -> None:

@@ -1,0 +1,195 @@
+"""``mfcl ros2`` as a process, over the real wire protocol: this test is another DDS
+participant (Cyclone DDS on loopback) that plays a simulated walk onto ``/scan``, ``/odom``
+(50 Hz, the robot's base) and ``/tf_static`` (the LiDAR's mounting), and reads back what
+nav2 would read: ``/initialpose`` against ground truth, ``/mfcl/status`` window by window
+against ``mfcl localize`` on the same recording, ``map -> odom`` on ``/tf``. Then the
+faults: the topics fall silent (a DEFER event), the recording is played again from its
+start (time goes back: a new segment that commits and publishes again), SIGTERM (exit
+143, ``--out`` written)."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds")
+
+from mfcl_jax.io import read_decisions, read_tum  # noqa: E402
+from mfcl_jax.io.tf_static import sensor_poses  # noqa: E402
+from mfcl_jax.se2 import inverse_host  # noqa: E402
+
+MFCL = str(Path(sys.executable).parent / "mfcl")
+# test_cli's walk of the symmetric bays (R1 -> door line -> R4; the robot tests' one compiled
+# step): 109 scans, 11 windows, DEFER until the walk nears the far wall, then COMMIT.
+WAYPOINTS = [(1.0, 4.2), (3.0, 1.8), (27.0, 1.8)]
+MOUNT = np.array([0.2, 0.1, math.pi / 2])  # the LiDAR on the base, sent on /tf_static
+RATE = 8.0  # times real time
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    from mfcl_jax.floorplan import save_geojson
+    from mfcl_jax.sim.scenes import symmetric_bays
+    from mfcl_jax.sources.simulated import simulate_dataset
+
+    root = tmp_path_factory.mktemp("ros2")
+    fp = symmetric_bays().floorplan
+    save_geojson(fp, root / "bays.geojson")
+    ds = simulate_dataset(fp, WAYPOINTS, root / "ds", seed=3, odom_rate=50)
+    return root, ds
+
+
+class _Listener:
+    """What a nav2 stack hears: every message of the node's topics, as it arrives."""
+
+    def __init__(self):
+        from mfcl_jax.ros2 import messages as M
+        from mfcl_jax.ros2.dds import LATCHED, RELIABLE, SENSOR, Bus, take
+
+        bus = Bus()
+        readers = {"status": bus.reader("/mfcl/status", M.String, RELIABLE),
+                   "pose": bus.reader("/initialpose", M.PoseWithCovarianceStamped, LATCHED),
+                   "tf": bus.reader("/tf", M.TFMessage, SENSOR)}  # fmt: skip
+        self.got = {k: [] for k in readers}
+        self._stop = False
+
+        def loop():
+            while not self._stop:
+                for k, r in readers.items():
+                    self.got[k] += take(r)
+                time.sleep(0.01)
+
+        self._thread = threading.Thread(target=loop, daemon=True)
+        self._thread.start()
+
+    def status(self) -> list[dict]:
+        return [json.loads(s.data) for s in self.got["status"]]
+
+    def windows(self) -> list[dict]:
+        return [s for s in self.status() if "event" not in s]
+
+    def wait(self, what, timeout: float = 120.0):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if what():
+                return True
+            time.sleep(0.05)
+        raise AssertionError(f"timed out; status so far: {self.status()[-5:]}")
+
+    def close(self):
+        self._stop = True
+        self._thread.join()
+
+
+def _drain(stream, lines):
+    for line in stream:
+        lines.append(line)
+
+
+def _base_truth(ds, t):
+    """The robot base's true pose in the plan at ``t`` (ground truth is the sensor's)."""
+    from mfcl_jax.io.timesync import interpolate_se2
+
+    gt_t, gt = read_tum(ds / "groundtruth.tum")
+    return sensor_poses(interpolate_se2(gt_t, gt, [t]), inverse_host(MOUNT))[0]
+
+
+def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp_path):
+    from mfcl_jax.ros2.dds import Bus
+    from mfcl_jax.ros2.play import Player, PlayParams
+    from mfcl_jax.sources.dataset import load_dataset
+
+    root, ds = walk
+    out, batch = tmp_path / "node.jsonl", tmp_path / "batch.jsonl"
+    listener = _Listener()
+    node = subprocess.Popen(
+        [MFCL, "ros2", "--floorplan", str(root / "bays.geojson"), "--out", str(out),
+         "--silence", "2", "--publish-tf"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    err: list[str] = []
+    threading.Thread(target=_drain, args=(node.stderr, err), daemon=True).start()
+    try:
+        # the same recording decided by the batch path, while the node starts
+        batch_run = subprocess.run([MFCL, "localize", str(ds), "--out", str(batch), "--quiet"],
+                                   capture_output=True, text=True)  # fmt: skip
+        assert batch_run.returncode == 0, batch_run.stderr
+        listener.wait(lambda: any(s.get("event") == "start" and s["state"] == "DEFER"
+                                  for s in listener.status()))  # fmt: skip
+        rec = load_dataset(ds)
+        o_t, o_sensor = read_tum(ds / "odometry.tum")
+        base = sensor_poses(o_sensor, inverse_host(MOUNT))
+        player = Player(Bus(), PlayParams(rate=RATE))
+        player.mount(MOUNT)
+        assert player.wait_for_readers()
+        player.play(rec.times, rec.scans, o_t, base)
+        want = read_decisions(batch)
+        listener.wait(lambda: len(listener.windows()) == len(want))
+
+        # window by window, the decisions of the same recording read from its folder
+        got = listener.windows()
+        assert [d["k"] for d in got] == list(range(1, len(want) + 1))
+        assert [d["state"] for d in got] == [d["state"] for d in want]
+        assert [d["B1"] for d in got] == [d["B1"] for d in want]
+        first = next(d for d in got if d["state"] == "COMMIT")
+        assert first["k"] < len(want)  # the walk commits before its end
+
+        # /initialpose: once, at the first COMMIT, the base's true pose within the judging
+        # line, frame map, a covariance from the fit (positive, below the prior's 1 m)
+        listener.wait(lambda: len(listener.got["pose"]) == 1)
+        p = listener.got["pose"][0]
+        t = p.header.stamp.sec + 1e-9 * p.header.stamp.nanosec
+        assert p.header.frame_id == "map" and abs(t - first["t"]) < 1e-6
+        q = p.pose.pose.orientation
+        yaw = 2 * math.atan2(q.z, q.w)
+        truth = _base_truth(ds, t)
+        pos = p.pose.pose.position
+        assert math.hypot(pos.x - truth[0], pos.y - truth[1]) < 1.0
+        assert abs(math.remainder(yaw - truth[2], 2 * math.pi)) < math.radians(5)
+        cov = np.asarray(p.pose.covariance).reshape(6, 6)[np.ix_([0, 1, 5], [0, 1, 5])]
+        assert np.all(np.linalg.eigvalsh(cov) > 0) and np.all(np.diag(cov) < 1.0)
+        # map -> odom: the committed anchor (the base's odometry placed by it)
+        tf = [ts for m in listener.got["tf"] for ts in m.transforms]
+        assert tf and tf[-1].header.frame_id == "map" and tf[-1].child_frame_id == "odom"
+        a = want[-1]["anchor"]
+        assert abs(tf[-1].transform.translation.x - a["x"]) < 0.05
+
+        # silence: a DEFER event, never a guess
+        def silent():
+            return [s for s in listener.status() if s.get("event") == "silent"
+                    and s["reason"].startswith("/scan: no message for")]  # fmt: skip
+
+        listener.wait(silent, 30)
+        assert silent()[0]["state"] == "DEFER" and silent()[0]["k"] == len(want)
+
+        # the recording again from its start: time goes back, a new segment commits anew
+        player.play(rec.times, rec.scans, o_t, base)
+        listener.wait(lambda: len(listener.windows()) == 2 * len(want))
+        assert any(s.get("event") == "restart" for s in listener.status())
+        again = listener.windows()[len(want) :]
+        assert [d["k"] for d in again] == list(range(len(want) + 1, 2 * len(want) + 1))
+        assert {d["segment"] for d in again} == {1}
+        assert [d["state"] for d in again] == [d["state"] for d in want]
+        listener.wait(lambda: len(listener.got["pose"]) == 2)
+
+        node.send_signal(signal.SIGTERM)
+        assert node.wait(timeout=60) == 143
+        listener.wait(lambda: listener.status()[-1].get("event") == "stop", 10)
+    finally:
+        if node.poll() is None:
+            node.kill()
+        listener.close()
+    text = "".join(err)
+    assert "mfcl: stopped by SIGTERM: 22 windows in 2 odometry segments" in text, text
+    assert "Traceback" not in text
+    written = read_decisions(out)
+    assert [d["k"] for d in written] == list(range(1, 2 * len(want) + 1))

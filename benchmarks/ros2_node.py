@@ -173,7 +173,8 @@ def _office(tmp: pathlib.Path, env: dict):
     from mfcl_jax.sources.simulated import simulate_dataset
 
     ds = tmp / "office"
-    simulate_dataset(load_floorplan(OFFICE_IFC), WAYPOINTS, ds, seed=0, odom_rate=100)
+    wp = np.loadtxt(WAYPOINTS.splitlines()[1:], delimiter=",")
+    simulate_dataset(load_floorplan(OFFICE_IFC), wp, ds, seed=0, odom_rate=100)
     expected = tmp / "office.jsonl"
     subprocess.run([*MFCL, "localize", str(ds), "--out", str(expected), "--quiet"], env=env,
                    check=True)  # fmt: skip

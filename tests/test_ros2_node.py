@@ -2,10 +2,11 @@
 participant (Cyclone DDS on loopback) that plays a simulated walk onto ``/scan``, ``/odom``
 (50 Hz, the robot's base) and ``/tf_static`` (the LiDAR's mounting), and reads back what
 nav2 would read: ``/initialpose`` against ground truth, ``/mfcl/status`` window by window
-against ``mfcl localize`` on the same recording, ``map -> odom`` on ``/tf``. Then the
-faults: the topics fall silent (a DEFER event), the recording is played again from its
-start (time goes back: a new segment that commits and publishes again), SIGTERM (exit
-143, ``--out`` written)."""
+against ``mfcl localize`` on the same recording, ``map -> odom`` on ``/tf``, and what a
+Foxglove client receives over WebSocket. Then the faults: the topics fall silent (a DEFER
+event), time goes back twice (a new segment each: the walk's first windows, which abstain
+and publish no pose, then the whole walk, which commits and publishes again), SIGTERM
+(exit 143, ``--out`` written)."""
 
 from __future__ import annotations
 
@@ -95,6 +96,50 @@ def _drain(stream, lines):
         lines.append(line)
 
 
+class _Foxglove:
+    """A WebSocket client of the node's Foxglove server (``websockets``), subscribed to every
+    channel it advertises; ``got[topic]`` the messages' JSON."""
+
+    def __init__(self, url: str):
+        from websockets.sync.client import connect
+
+        self.got: dict[str, list] = {}
+        self._ws = connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"])
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+        self._thread.start()
+
+    def _loop(self):
+        import struct
+
+        from websockets.exceptions import ConnectionClosed
+
+        topics = {}
+        try:
+            while True:
+                m = self._ws.recv()
+                if isinstance(m, str):
+                    d = json.loads(m)
+                    if d["op"] == "advertise":
+                        subs = []
+                        for c in d["channels"]:
+                            topics[c["id"]] = c["topic"]
+                            subs.append({"id": c["id"], "channelId": c["id"]})
+                        self._ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                elif m[0] == 1:  # message data: op, subscription id, log time, payload
+                    sub, _ = struct.unpack("<IQ", m[1:13])
+                    self.got.setdefault(topics[sub], []).append(json.loads(m[13:]))
+        except ConnectionClosed:
+            pass
+
+    def close(self):
+        self._ws.close()
+        self._thread.join(timeout=10)
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
 def _base_truth(ds, t):
     """The robot base's true pose in the plan at ``t`` (ground truth is the sensor's)."""
     from mfcl_jax.io.timesync import interpolate_se2
@@ -113,7 +158,7 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
     listener = _Listener()
     node = subprocess.Popen(
         [MFCL, "ros2", "--floorplan", str(root / "bays.geojson"), "--out", str(out),
-         "--silence", "2", "--publish-tf"],
+         "--silence", "2", "--publish-tf", "--foxglove", "0"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     err: list[str] = []
@@ -125,6 +170,9 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
         assert batch_run.returncode == 0, batch_run.stderr
         listener.wait(lambda: any(s.get("event") == "start" and s["state"] == "DEFER"
                                   for s in listener.status()))  # fmt: skip
+        listener.wait(lambda: any("Foxglove: ws://" in x for x in err))
+        url = next(x for x in err if "Foxglove: ws://" in x).split("Foxglove: ")[1].strip()
+        fox = _Foxglove(url)
         rec = load_dataset(ds)
         o_t, o_sensor = read_tum(ds / "odometry.tum")
         base = sensor_poses(o_sensor, inverse_host(MOUNT))
@@ -147,7 +195,7 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
         # line, frame map, a covariance from the fit (positive, below the prior's 1 m)
         listener.wait(lambda: len(listener.got["pose"]) == 1)
         p = listener.got["pose"][0]
-        t = p.header.stamp.sec + 1e-9 * p.header.stamp.nanosec
+        t = _stamp(p)
         assert p.header.frame_id == "map" and abs(t - first["t"]) < 1e-6
         q = p.pose.pose.orientation
         yaw = 2 * math.atan2(q.z, q.w)
@@ -171,15 +219,46 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
         listener.wait(silent, 30)
         assert silent()[0]["state"] == "DEFER" and silent()[0]["k"] == len(want)
 
-        # the recording again from its start: time goes back, a new segment commits anew
+        # time goes back: the walk's first 36 m again (its windows DEFER): a new segment,
+        # no pose published; then the whole walk again: it commits and publishes anew
+        n = len(want)
+        short = [d for d in want if d["state"] != "COMMIT"]
+        cut = rec.times <= short[-1]["t"] + 1e-9
+        player.play(
+            rec.times[cut],
+            [s for s, c in zip(rec.scans, cut, strict=True) if c],
+            o_t[o_t <= short[-1]["t"] + 1e-9],
+            base[o_t <= short[-1]["t"] + 1e-9],
+        )
+        listener.wait(lambda: len(listener.windows()) == n + len(short))
+        assert len(listener.got["pose"]) == 1  # the abstaining segment published nothing
         player.play(rec.times, rec.scans, o_t, base)
-        listener.wait(lambda: len(listener.windows()) == 2 * len(want))
-        assert any(s.get("event") == "restart" for s in listener.status())
-        again = listener.windows()[len(want) :]
-        assert [d["k"] for d in again] == list(range(len(want) + 1, 2 * len(want) + 1))
-        assert {d["segment"] for d in again} == {1}
-        assert [d["state"] for d in again] == [d["state"] for d in want]
+        listener.wait(lambda: len(listener.windows()) == 2 * n + len(short))
+        restarts = [s for s in listener.status() if s.get("event") == "restart"]
+        assert len(restarts) == 2
+        segs = listener.windows()[n:]
+        assert [d["k"] for d in segs] == list(range(n + 1, 2 * n + len(short) + 1))
+        assert [d["segment"] for d in segs] == [1] * len(short) + [2] * n
+        assert [d["state"] for d in segs] == [d["state"] for d in short + want]
         listener.wait(lambda: len(listener.got["pose"]) == 2)
+        assert abs(_stamp(listener.got["pose"][1]) - first["t"]) < 1e-6
+
+        # Foxglove, live: a message on every channel; the decisions those of the status topic
+        listener.wait(lambda: len(fox.got.get("/mfcl/decision", [])) == len(listener.windows()),
+                      30)  # fmt: skip
+        assert set(fox.got) == {
+            "/mfcl/plan",
+            "/mfcl/scan",
+            "/mfcl/pose",
+            "/mfcl/path",
+            "/mfcl/alternatives",
+            "/mfcl/state",
+            "/mfcl/decision",
+        }
+        assert [d["k"] for d in fox.got["/mfcl/decision"]] == [d["k"] for d in listener.windows()]
+        assert fox.got["/mfcl/plan"][0]["entities"][0]["lines"]
+        assert any(m["poses"] for m in fox.got["/mfcl/pose"])  # the committed pose is drawn
+        fox.close()
 
         node.send_signal(signal.SIGTERM)
         assert node.wait(timeout=60) == 143
@@ -189,7 +268,8 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
             node.kill()
         listener.close()
     text = "".join(err)
-    assert "mfcl: stopped by SIGTERM: 22 windows in 2 odometry segments" in text, text
+    total = len(listener.windows())
+    assert f"mfcl: stopped by SIGTERM: {total} windows in 3 odometry segments" in text, text
     assert "Traceback" not in text
     written = read_decisions(out)
-    assert [d["k"] for d in written] == list(range(1, 2 * len(want) + 1))
+    assert [d["k"] for d in written] == list(range(1, total + 1))

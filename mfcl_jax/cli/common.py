@@ -97,7 +97,8 @@ def viz_add(viz, result, record):
     try:
         viz.add(result, record)
     except DataError as e:
-        err(f"mfcl: warning: {e}; {viz.path} will not be written")
+        what = "the live view stops" if viz.path is None else f"{viz.path} will not be written"
+        err(f"mfcl: warning: {e}; {what}")
         viz.discard()
         return None
     return viz

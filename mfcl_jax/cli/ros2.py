@@ -98,6 +98,20 @@ def add_ros2_commands(subparsers) -> None:
     )
     ro.add_argument("--out", type=Path, help="also write the decisions (JSON lines) on exit")
     ro.add_argument("--viz", type=Path, metavar="FILE.mcap", help="also write an MCAP on exit")
+    ro.add_argument(
+        "--foxglove",
+        type=int,
+        nargs="?",
+        const=8765,
+        metavar="PORT",
+        help="serve the --viz content live over Foxglove's WebSocket protocol on "
+        "PORT (8765): open ws://HOST:PORT in Foxglove to watch the layer decide",
+    )
+    ro.add_argument(
+        "--foxglove-host",
+        default="127.0.0.1",
+        help="address the Foxglove server listens on (127.0.0.1: this machine; 0.0.0.0: any)",
+    )
     ro.add_argument("--quiet", action="store_true", help="no per-window status lines on stderr")
     from mfcl_jax.cli.floorplan import add_rosmap_flags
 

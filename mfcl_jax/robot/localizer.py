@@ -230,9 +230,9 @@ class Localizer:
     def run(self, seq) -> Iterator[WindowResult]:
         """Streams the windows of ``seq``; yields one ``WindowResult`` per window, each as
         soon as its keyframes are refined and it is decided."""
-        return self.follow([seq], prepare=self.estimate(seq) > 0)
+        return self.follow([seq], prepare=self.estimate(seq) > 0, live=False)
 
-    def follow(self, prefixes, prepare: bool = True) -> Iterator[WindowResult]:
+    def follow(self, prefixes, prepare: bool = True, live: bool = True) -> Iterator[WindowResult]:
         """Streams the windows of a recording that grows (the live path).
 
         Args:
@@ -241,10 +241,12 @@ class Localizer:
                 Windows are causal, so the results are ``run``'s on the last prefix.
             prepare: compile the step in the background from the start (``_prepare``); off
                 where no window is expected, so that nothing is compiled for nothing.
+            live: the prefixes grow a few scans at a time (``windows.Cutter``'s ``live``:
+                the LiDAR odometry in small chunks; the same windows).
         """
         if prepare:
             self._prepare()
-        cutter = W.Cutter(self.params.window)
+        cutter = W.Cutter(self.params.window, live=live)
         world, memory, prev_end, seg, base, k = None, None, -1, None, 0, 0
         step = self.params.caps.step
         for seq in prefixes:

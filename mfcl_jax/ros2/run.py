@@ -59,8 +59,10 @@ def run_node(args, progress) -> int:
         check_output(args.out, inputs=inputs)
     if args.viz is not None:
         check_viz(args.viz, [*inputs, args.out])
+    if args.foxglove is not None and not 0 <= args.foxglove <= 65535:
+        raise DataError(f"ros2: --foxglove PORT must be 0..65535, got {args.foxglove}")
     with StopSignals() as signals:
-        node, viz, why = None, None, None
+        node, viz, why, live, live_viz = None, None, None, None, None
         try:
             from mfcl_jax.ros2.dds import Bus
             from mfcl_jax.ros2.node import Node
@@ -81,10 +83,17 @@ def run_node(args, progress) -> int:
                                     occupied_thresh=args.occupied_thresh)  # fmt: skip
             lp = localize_params(args)
             viz = VizWriter(args.viz, fp) if args.viz is not None else None
+            if args.foxglove is not None:
+                from mfcl_jax.robot.viz_live import FoxgloveLive
+
+                live = FoxgloveLive(args.foxglove, args.foxglove_host)
+                live_viz = VizWriter(None, fp, live=live)
+                _err(f"mfcl: Foxglove: ws://{live.host}:{live.port}")
 
             def on_window(result, rec):
-                nonlocal viz
+                nonlocal viz, live_viz
                 viz = viz_add(viz, result, rec)
+                live_viz = viz_add(live_viz, result, rec)
                 if not args.quiet:
                     _err(result.status(fp.offset))
 
@@ -111,6 +120,8 @@ def run_node(args, progress) -> int:
                 _err(f"decisions: {args.out}")
             if viz is not None:
                 _err(f"viz: {viz.close()}")
+            if live is not None:
+                live.close()
     return stop_status(why)
 
 

@@ -12,7 +12,7 @@ from mfcl_jax.windows.keyframes import (
     odometry_segments,
     segment_bounds,
 )
-from mfcl_jax.windows.odometry import Odometer, extend_many
+from mfcl_jax.windows.odometry import LIVE_CHUNK, Odometer, extend_many
 from mfcl_jax.windows.submaps import WindowParams, Windows, _windows, window
 
 __all__ = ["cut_many", "Cutter"]
@@ -58,13 +58,18 @@ class Cutter:
     window after the first few keyframes, not after the whole recording; windows are causal,
     so the result equals ``cut`` of the final sequence.
 
+    ``live``: the recording grows a few scans at a time (a robot), so the LiDAR odometry runs
+    ``odometry.LIVE_CHUNK`` keyframes per kernel call instead of ``scan_match.chunk`` (the
+    same poses, a fraction of the time per new keyframe).
+
     Attributes:
         odometer: the ``Odometer`` (its ``poses`` and ``segments`` cover the keyframes so far).
         n_windows: windows emitted so far.
     """
 
-    def __init__(self, params: WindowParams | None = None):
+    def __init__(self, params: WindowParams | None = None, live: bool = False):
         self.params = params or WindowParams()
+        self.live = live
         self.odometer = Odometer(self.params.scan_match)
         self.n_windows = 0
         self._kf: list[int] = []  # keyframes of the scans looked at so far (``_seen``)
@@ -90,11 +95,11 @@ class Cutter:
         raw = x[kf]
         seg_in = odometry_segments(raw, np.asarray(seq.times)[kf])
         odo = self.odometer
-        step = p.scan_match.chunk
+        step = LIVE_CHUNK if self.live else p.scan_match.chunk
         while len(odo) < len(kf):
             a = len(odo)
             b = min(a + step, len(kf))
-            odo.extend([seq.scans[i] for i in kf[a:b]], raw[a:b], seg_in[a:b])
+            odo.extend([seq.scans[i] for i in kf[a:b]], raw[a:b], seg_in[a:b], chunk=step)
             w = _windows(seq, p, kf[:b], odo.poses[:b], odo.segments[:b], start=self.n_windows)
             for k in range(len(w)):
                 yield window(w, k)

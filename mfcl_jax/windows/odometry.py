@@ -44,7 +44,13 @@ from mfcl_jax import se2
 from mfcl_jax.sparse_cond import sparse_cond
 from mfcl_jax.windows.icp import ScanMatchParams, icp, normals, thin_scan, thresholds
 
-__all__ = ["ScanMatchParams", "Odometer", "extend_many", "scan_match", "thin_scan"]
+__all__ = ["ScanMatchParams", "Odometer", "extend_many", "scan_match", "thin_scan", "LIVE_CHUNK"]
+
+# Keyframes per kernel call on a live stream (``Cutter(live=True)``): a robot adds one
+# keyframe at a time, and a call costs its whole chunk (the scan runs masked steps too), so a
+# chunk of 32 made every new keyframe cost about 60 ms on 2 cores; 4 costs about 8 ms. The
+# masked steps leave the carry as it was, so the poses do not depend on the chunk.
+LIVE_CHUNK = 4
 
 
 def _alternatives(ops):
@@ -153,7 +159,7 @@ class Odometer:
         (the input's, as given to ``extend``, and those the jump test found)."""
         return np.maximum(np.cumsum(self.starts) - 1, 0).astype(np.int64)
 
-    def extend(self, scans, odometry, segments) -> np.ndarray:
+    def extend(self, scans, odometry, segments, chunk: int | None = None) -> np.ndarray:
         """Adds keyframes; returns the refined poses ``(M, 3)`` of all keyframes so far.
 
         Args:
@@ -161,8 +167,9 @@ class Odometer:
             odometry: ``(m, 3)`` their input odometry poses.
             segments: ``(m,)`` their odometry segment ids (``windows.odometry_segments`` of
                 the whole keyframe sequence): a change of id starts over.
+            chunk: keyframes per kernel call (default ``params.chunk``; ``LIVE_CHUNK``).
         """
-        return extend_many([self], [scans], [odometry], [segments])[0]
+        return extend_many([self], [scans], [odometry], [segments], chunk=chunk)[0]
 
     def _given(self, odometry, segments):
         """Where the input's segment id changes (the first keyframe ever starts one)."""
@@ -181,13 +188,15 @@ class Odometer:
         return self.poses
 
 
-def extend_many(odometers, scans, odometry, segments, rows: int = 1) -> list[np.ndarray]:
+def extend_many(odometers, scans, odometry, segments, rows: int = 1,
+                chunk: int | None = None) -> list[np.ndarray]:  # fmt: skip
     """``Odometer.extend`` of several odometers (one per recording) in one batched kernel.
 
     The recordings' keyframes are fed chunk by chunk (``chunk`` keyframes of every
     recording per call, shorter ones padded), so one compilation serves any length; each
     recording's poses are exactly what its own ``extend`` would give. ``rows``: the least
     recordings per call (idle rows padded), so that batches of fewer share the compilation.
+    ``chunk``: keyframes per call (default ``params.chunk``; one compilation per value).
 
     Returns:
         The refined poses ``(M_i, 3)`` of all keyframes so far, per odometer.
@@ -204,14 +213,15 @@ def extend_many(odometers, scans, odometry, segments, rows: int = 1) -> list[np.
     idle = [odometers[0]._carry] * (n - len(odometers))
     carry = jax.tree.map(lambda *xs: np.stack(xs), *[od._carry for od in odometers], *idle)
     out = [([], [], []) for _ in odometers]
-    for i0 in range(0, longest, p.chunk):
-        S = np.zeros((n, p.chunk, p.points, 2), np.float32)
-        M = np.zeros((n, p.chunk, p.points), bool)
-        O = np.zeros((n, p.chunk, 3), np.float32)
-        valid = np.zeros((n, p.chunk), bool)
-        reset = np.zeros((n, p.chunk), bool)
+    size = p.chunk if chunk is None else int(chunk)
+    for i0 in range(0, longest, size):
+        S = np.zeros((n, size, p.points, 2), np.float32)
+        M = np.zeros((n, size, p.points), bool)
+        O = np.zeros((n, size, 3), np.float32)
+        valid = np.zeros((n, size), bool)
+        reset = np.zeros((n, size), bool)
         for r, od in enumerate(odometers):
-            sl = slice(i0, min(i0 + p.chunk, len(odometry[r])))
+            sl = slice(i0, min(i0 + size, len(odometry[r])))
             m = max(sl.stop - sl.start, 0)
             for j, sc in enumerate(scans[r][sl]):
                 S[r, j], M[r, j] = thin_scan(sc, p)
@@ -222,7 +232,7 @@ def extend_many(odometers, scans, odometry, segments, rows: int = 1) -> list[np.
         carry, (pose, trusted, jump) = _chunk(odometers[0]._th, carry, S, M, O, valid, reset)
         pose, trusted, jump = (np.asarray(a) for a in (pose, trusted, jump))
         for r, od in enumerate(odometers):
-            sl = slice(i0, min(i0 + p.chunk, len(odometry[r])))
+            sl = slice(i0, min(i0 + size, len(odometry[r])))
             m = max(sl.stop - sl.start, 0)
             if m:
                 out[r][0].append(pose[r, :m].astype(np.float64) + od._origin)

@@ -113,18 +113,17 @@ class Memory:
         self._stop = True
 
 
-def replay(name, plan, scans, odom, mount, args_extra, env, seconds=None):
-    """Starts the node, plays ``scans`` ``[(t, LaserScan)]`` and ``odom`` ``[(t, msg)]`` at
-    real rate (for ``seconds`` of stamps at most), stops it; returns (windows, memory,
-    poses, first status s, the last stamp played)."""
+def replay(name, plan, messages, args_extra, env, seconds=None):
+    """Starts the node, plays ``messages`` ``[(t, topic, sample)]`` (``/scan``, ``/odom``,
+    ``/tf_static``) at real rate (``seconds`` of them at most), stops it; returns (windows,
+    memory, poses, first status s, the last scan stamp played)."""
     from mfcl_jax.ros2 import messages as M
-    from mfcl_jax.ros2.dds import LATCHED, RELIABLE, SENSOR, Bus
+    from mfcl_jax.ros2.dds import LATCHED, RELIABLE, SENSOR, Bus, take  # noqa: F401
 
     bus = Bus()
-    scan_w = bus.writer("/scan", M.LaserScan, SENSOR)
-    odom_w = bus.writer("/odom", M.Odometry, RELIABLE)
-    tf_w = bus.writer("/tf_static", M.TFMessage, LATCHED)
-    tf_w.write(mount)
+    writers = {"/scan": bus.writer("/scan", M.LaserScan, SENSOR),
+               "/odom": bus.writer("/odom", M.Odometry, RELIABLE),
+               "/tf_static": bus.writer("/tf_static", M.TFMessage, LATCHED)}  # fmt: skip
     nav2 = Nav2Side()
     t_start = time.monotonic()
     node = subprocess.Popen([*MFCL, "ros2", "--floorplan", str(plan), "--quiet", *args_extra],
@@ -133,23 +132,24 @@ def replay(name, plan, scans, odom, mount, args_extra, env, seconds=None):
     while not nav2.status and node.poll() is None:
         time.sleep(0.01)
     first_status = nav2.status[0][0] - t_start if nav2.status else math.nan
-    while not (scan_w.get_matched_subscriptions() and odom_w.get_matched_subscriptions()):
+    while not all(w.get_matched_subscriptions() for w in writers.values()):
         time.sleep(0.02)
-    events = sorted([(t, 0, m) for t, m in odom] + [(t, 1, m) for t, m in scans],
-                    key=lambda e: (e[0], e[1]))  # fmt: skip
-    t0 = events[0][0]
+    t0 = next(t for t, topic, _ in messages if topic != "/tf_static")
     if seconds is not None:
-        events = [e for e in events if e[0] - t0 <= seconds]
-    sent = {}
+        messages = [m for m in messages if m[1] == "/tf_static" or m[0] - t0 <= seconds]
+    sent, last = {}, None
     w0 = time.monotonic()
-    log(f"{name}: playing {len(events)} messages ({events[-1][0] - t0:.0f} s) at real rate")
-    for t, kind, m in events:
-        wait = w0 + (t - t0) - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)
-        (odom_w if kind == 0 else scan_w).write(m)
-        if kind == 1:
-            sent[round(t, 6)] = time.monotonic()
+    span = messages[-1][0] - t0
+    log(f"{name}: playing {len(messages)} messages ({span:.0f} s) at real rate")
+    for t, topic, m in messages:
+        if topic != "/tf_static":
+            wait = w0 + (t - t0) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+        writers[topic].write(m)
+        if topic == "/scan":
+            last = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+            sent[round(last, 6)] = time.monotonic()
     time.sleep(5.0)  # the last windows, then stop
     node.terminate()
     err = node.communicate(timeout=120)[1]
@@ -161,7 +161,7 @@ def replay(name, plan, scans, odom, mount, args_extra, env, seconds=None):
         rows.append({"case": name, "k": s["k"], "t": s["t"], "state": s["state"],
                      "latency_ms": 1e3 * (arrived - published)})  # fmt: skip
     log(f"{name}: node stderr tail: {err.strip().splitlines()[-2:]}")
-    return rows, mem.rows, nav2.poses, first_status, events[-1][0]
+    return rows, mem.rows, nav2.poses, first_status, last
 
 
 def _office(tmp: pathlib.Path, env: dict):
@@ -180,17 +180,18 @@ def _office(tmp: pathlib.Path, env: dict):
                    check=True)  # fmt: skip
     rec = load_dataset(ds)
     ot, op = read_tum(ds / "odometry.tum")
-    scans = [(t, laserscan(t, s, "laser")) for t, s in zip(rec.times, rec.scans, strict=True)]
-    odom = [(t, odometry_msg(t, p)) for t, p in zip(ot, op, strict=True)]
-    mount = TFMessage([_transform(0.0, "base_link", "laser", (0.0, 0.0, 0.0))])
+    msgs = [(0.0, "/tf_static", TFMessage([_transform(0.0, "base_link", "laser", (0, 0, 0))]))]
+    msgs += sorted([(t, "/odom", odometry_msg(t, p)) for t, p in zip(ot, op, strict=True)]
+                   + [(t, "/scan", laserscan(t, s, "laser"))
+                      for t, s in zip(rec.times, rec.scans, strict=True)],
+                   key=lambda e: (e[0], e[1] == "/scan"))  # fmt: skip
     gt_t, gt = read_tum(ds / "groundtruth.tum")
-    return OFFICE_IFC, scans, odom, mount, expected, (gt_t, gt)
+    return OFFICE_IFC, msgs, expected, (gt_t, gt)
 
 
 def _intel(tmp: pathlib.Path, env: dict, minutes: float):
     from mfcl_jax.io import read_bag
-    from mfcl_jax.io.bag import open_bag
-    from mfcl_jax.ros2 import messages as M
+    from mfcl_jax.ros2.play import bag_messages
     from mfcl_jax.sources.bagtruth import bag_ground_truth
     from mfcl_jax.sources.logs import full_map, read_log
 
@@ -199,45 +200,13 @@ def _intel(tmp: pathlib.Path, env: dict, minutes: float):
     subprocess.run([*MFCL, "localize", "--bag", str(BAG), "--floorplan", str(plan),
                     "--tf-static", "--out", str(expected), "--quiet"], env=env,
                    check=True)  # fmt: skip
-    reader = open_bag(BAG)
-    scans, odom, mount = [], [], None
-
-    def header(h):
-        return M.Header(stamp=M.Time(h.stamp.sec, h.stamp.nanosec), frame_id=h.frame_id)
-
-    for c, _, raw in reader.messages():
-        m = reader.deserialize(raw, c.msgtype)
-        if c.topic == "/scan":
-            t = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
-            scans.append((t, M.LaserScan(header(m.header), m.angle_min, m.angle_max,
-                                         m.angle_increment, m.time_increment, m.scan_time,
-                                         m.range_min, m.range_max, m.ranges.tolist(),
-                                         m.intensities.tolist())))  # fmt: skip
-        elif c.topic == "/odom":
-            t = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
-            p, q = m.pose.pose.position, m.pose.pose.orientation
-            pose = M.Pose(M.Point(p.x, p.y, p.z), M.Quaternion(q.x, q.y, q.z, q.w))
-            odom.append((t, M.Odometry(header(m.header), m.child_frame_id,
-                                       M.PoseWithCovariance(pose))))  # fmt: skip
-        elif c.topic == "/tf_static":
-            ts = m.transforms[0]
-            tr, q = ts.transform.translation, ts.transform.rotation
-            mount = M.TFMessage(
-                [
-                    M.TransformStamped(
-                        header(ts.header),
-                        ts.child_frame_id,
-                        M.Transform(M.Vector3(tr.x, tr.y, tr.z), M.Quaternion(q.x, q.y, q.z, q.w)),
-                    )
-                ]
-            )
-    reader.close()
+    msgs = bag_messages(BAG, seconds=minutes * 60.0)
     bag = read_bag(BAG, "/scan", "/odom")
     logd = read_log("intel")
     off, bi, li, agree = bag_ground_truth(bag, logd)
     good = agree > 0.95
     truth = (bag.times[bi[good]], logd.poses[li[good]])
-    return plan, scans, odom, mount, expected, truth, minutes * 60.0
+    return plan, msgs, expected, truth
 
 
 def _pose_error(poses, truth):
@@ -273,11 +242,12 @@ def main(argv=None) -> int:
     for name in cases:
         log(f"{name}: preparing (the batch run fills the compilation cache)")
         if name == "office":
-            plan, scans, odom, mount, expected, truth = _office(tmp, env)
-            seconds = None
+            plan, msgs, expected, truth = _office(tmp, env)
         else:
-            plan, scans, odom, mount, expected, truth, seconds = _intel(tmp, env, args.minutes)
-        rows, mem, poses, first, t_end = replay(name, plan, scans, odom, mount, [], env, seconds)
+            plan, msgs, expected, truth = _intel(tmp, env, args.minutes)
+        rows, mem, poses, first, t_end = replay(name, plan, msgs, [], env)
+        scan_t = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                  for _, topic, m in msgs if topic == "/scan"]  # fmt: skip
         want = [json.loads(x) for x in expected.read_text().splitlines()]
         want = [w for w in want if w["t"] <= t_end]
         got = {r["k"]: r for r in rows}
@@ -287,7 +257,7 @@ def main(argv=None) -> int:
         mib = np.asarray([m for _, m in mem])
         late = [m for s, m in mem if s >= 120.0] or list(mib)
         summary.append({
-            "case": name, "played_s": round(t_end - min(t for t, _ in scans), 1),
+            "case": name, "played_s": round(t_end - scan_t[0], 1),
             "first_status_s": round(first, 2), "windows": len(rows),
             "windows_batch": len(want), "same_state": same,
             "latency_median_ms": round(float(np.nanmedian(lat)), 1),

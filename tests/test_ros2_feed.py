@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -162,3 +163,35 @@ def test_inverse_mount_round_trip():
     base = np.array([[1.0, 2.0, 0.3]])
     sensor = sensor_poses(base, MOUNT)
     assert np.allclose(sensor_poses(sensor, inverse_host(np.asarray(MOUNT))), base)
+
+
+BAG = Path(__file__).resolve().parents[2] / "shared" / "data" / "laser" / "intel.orig.bag"
+
+
+@pytest.mark.skipif(not BAG.is_file(), reason=f"real data {BAG} is absent")
+def test_the_intel_bag_over_dds_is_what_the_batch_reads(ros2_env):
+    """The raw Intel bag's own messages (converted from ``rosbags``: real LaserScans with
+    out-of-range returns, real /odom, its /tf_static) played at 40x for its first 60 s: the
+    feed's scans and sensor poses are ``read_bag``'s (the batch path) at the same stamps."""
+    from mfcl_jax.io import read_bag
+    from mfcl_jax.ros2.play import bag_messages
+
+    msgs = bag_messages(BAG, seconds=60.0)
+    feed = TopicFeed(Bus(), FeedParams(silence_s=30.0), lambda e, r: None)
+    player = Player(Bus(), PlayParams(rate=40.0))
+    assert player.wait_for_readers()
+    th = threading.Thread(target=player.play_messages, args=(msgs,), daemon=True)
+    th.start()
+    n_scans = sum(topic == "/scan" for _, topic, _ in msgs)
+    seq, end = None, time.monotonic() + 30
+    while time.monotonic() < end and (seq is None or len(seq) < n_scans - 2):
+        grew, _ = feed.step()
+        seq = feed.sequence() if feed.n_scans else None
+        time.sleep(0.01)
+    th.join()
+    bag = read_bag(BAG, "/scan", "/odom", base_frame="base_link")
+    j = np.searchsorted(bag.times, seq.times)
+    assert len(seq) >= n_scans - 2 and np.allclose(bag.times[j], seq.times, atol=1e-9)
+    assert np.allclose(bag.odometry[j], seq.odometry, atol=1e-9)
+    for i in (0, len(seq) // 2, len(seq) - 1):
+        assert np.allclose(bag.scans[j[i]], seq.scans[i], atol=1e-6)

@@ -33,7 +33,7 @@ MFCL = str(Path(sys.executable).parent / "mfcl")
 # step): 109 scans, 11 windows, DEFER until the walk nears the far wall, then COMMIT.
 WAYPOINTS = [(1.0, 4.2), (3.0, 1.8), (27.0, 1.8)]
 MOUNT = np.array([0.2, 0.1, math.pi / 2])  # the LiDAR on the base, sent on /tf_static
-RATE = 8.0  # times real time
+RATE = 16.0  # times real time
 
 
 @pytest.fixture(scope="module")
@@ -101,22 +101,29 @@ class _Foxglove:
     channel it advertises; ``got[topic]`` the messages' JSON."""
 
     def __init__(self, url: str):
-        from websockets.sync.client import connect
-
         self.got: dict[str, list] = {}
-        self._ws = connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"])
-        self._thread = threading.Thread(target=self._loop, daemon=True)
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._loop, args=(url,), daemon=True)
         self._thread.start()
+        assert self._ready.wait(30)
 
-    def _loop(self):
+    def _loop(self, url):
         import struct
 
         from websockets.exceptions import ConnectionClosed
+        from websockets.sync.client import connect
 
         topics = {}
+        protocols = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+        with connect(url, subprotocols=protocols) as ws:
+            self._ws = ws
+            self._ready.set()
+            self._receive(ws, topics, struct, ConnectionClosed)
+
+    def _receive(self, ws, topics, struct, ConnectionClosed):
         try:
             while True:
-                m = self._ws.recv()
+                m = ws.recv()
                 if isinstance(m, str):
                     d = json.loads(m)
                     if d["op"] == "advertise":
@@ -124,7 +131,7 @@ class _Foxglove:
                         for c in d["channels"]:
                             topics[c["id"]] = c["topic"]
                             subs.append({"id": c["id"], "channelId": c["id"]})
-                        self._ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                        ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
                 elif m[0] == 1:  # message data: op, subscription id, log time, payload
                     sub, _ = struct.unpack("<IQ", m[1:13])
                     self.got.setdefault(topics[sub], []).append(json.loads(m[13:]))

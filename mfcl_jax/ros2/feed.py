@@ -4,10 +4,11 @@
 ``cloud=True``), the odometry (``nav_msgs/Odometry``, or ``/tf``'s transforms from
 ``odom_frames[0]`` to ``odom_frames[1]``) and, unless the mounting is given, ``/tf_static``
 (the chain from ``base_frame`` to the scans' ``header.frame_id``). Scans join in stamp order,
-as ``robot.live.Follower`` joins a folder's files: once the odometry reaches their stamp,
-with the odometry interpolated there (``io.timesync``) and composed with the mounting, so
-each joined scan carries the SENSOR pose in the odometry frame, the convention of every
-``ScanSequence``. 3-D clouds are cut by the height band as they arrive
+as ``robot.live.Follower`` joins a folder's files: once the odometry reaches their stamp
+(an odometry message at or after it: the pose is then interpolated as the batch path does,
+never taken from a stamp up to 1 ms before; ``io.timesync``) and composed with the
+mounting, so each joined scan carries the SENSOR pose in the odometry frame, the
+convention of every ``ScanSequence``. 3-D clouds are cut by the height band as they arrive
 (``sources.planar.PlanarStream``).
 
 What the stamps say, and what the feed does:
@@ -242,8 +243,8 @@ class TopicFeed:
                 queue.pop(0)
                 self.counts["early" if t < ot[0] - TIME_TOL_S else "late"] += 1
                 continue
-            if t > ot[-1] + TIME_TOL_S:
-                break
+            if t > ot[-1]:
+                break  # wait for odometry at or after the scan: interpolate, as the batch does
             mount = self._mount(frame)
             if mount is None:
                 break  # waiting for /tf_static

@@ -157,6 +157,7 @@ class Node:
         if rec["state"] == "COMMIT":
             a = rec["anchor"]
             self._anchor = (a["x"], a["y"], math.radians(a["yaw_deg"]))
+            self._publish_tf(self._t)
             if self._published_segment != result.segment:
                 self._published_segment = result.segment
                 self._publish_pose(result, rec)

@@ -19,7 +19,10 @@ import numpy as np
 from mfcl_jax.ros2 import dds
 from mfcl_jax.ros2 import messages as M
 
-__all__ = ["PlayParams", "Player", "laserscan", "pointcloud2", "odometry_msg"]
+__all__ = [
+    "PlayParams", "Player", "laserscan", "pointcloud2", "odometry_msg", "from_rosbags",
+    "bag_messages",
+]  # fmt: skip
 
 
 def laserscan(t: float, points, frame: str, n_beams: int = 720, range_max: float = 40.0):
@@ -139,3 +142,82 @@ class Player:
             else:
                 self._scan.write(laserscan(t + offset, scans[i], p.scan_frame))
             self.sent += 1
+
+    def play_messages(self, messages, stop=None) -> None:
+        """Publishes ``[(t, topic, sample)]`` (``bag_messages``) in order, paced at ``rate``
+        times real time; the topics are the player's scan and odometry topics and
+        ``/tf_static``."""
+        writers = {self.params.scan_topic: self._scan, self.params.odom_topic: self._odom,
+                   "/tf_static": self._tf_static}  # fmt: skip
+        w0, t0 = time.monotonic(), None
+        for t, topic, msg in messages:
+            if stop is not None and stop():
+                return
+            if topic != "/tf_static":
+                t0 = t if t0 is None else t0
+                wait = w0 + (t - t0) / self.params.rate - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)
+            writers[topic].write(msg)
+            self.sent += 1
+
+
+def _header(h) -> M.Header:
+    return M.Header(stamp=M.Time(int(h.stamp.sec), int(h.stamp.nanosec)), frame_id=h.frame_id)
+
+
+def _vector(v) -> M.Vector3:
+    return M.Vector3(float(v.x), float(v.y), float(v.z))
+
+
+def _quat(q) -> M.Quaternion:
+    return M.Quaternion(float(q.x), float(q.y), float(q.z), float(q.w))
+
+
+def from_rosbags(msg, msgtype: str):
+    """The DDS sample of a message deserialized by ``rosbags`` (ROS 1 or ROS 2 bag), for the
+    types a robot's recording carries: LaserScan, PointCloud2, Odometry, TFMessage."""
+    if msgtype == "sensor_msgs/msg/LaserScan":
+        return M.LaserScan(_header(msg.header), float(msg.angle_min), float(msg.angle_max),
+                           float(msg.angle_increment), float(msg.time_increment),
+                           float(msg.scan_time), float(msg.range_min), float(msg.range_max),
+                           np.asarray(msg.ranges, np.float32).tolist(),
+                           np.asarray(msg.intensities, np.float32).tolist())  # fmt: skip
+    if msgtype == "sensor_msgs/msg/PointCloud2":
+        fields = [M.PointField(f.name, int(f.offset), int(f.datatype), int(f.count))
+                  for f in msg.fields]  # fmt: skip
+        return M.PointCloud2(_header(msg.header), int(msg.height), int(msg.width), fields,
+                             bool(msg.is_bigendian), int(msg.point_step), int(msg.row_step),
+                             bytes(msg.data), bool(msg.is_dense))  # fmt: skip
+    if msgtype == "nav_msgs/msg/Odometry":
+        p = msg.pose.pose
+        pose = M.Pose(M.Point(float(p.position.x), float(p.position.y), float(p.position.z)),
+                      _quat(p.orientation))  # fmt: skip
+        return M.Odometry(_header(msg.header), msg.child_frame_id, M.PoseWithCovariance(pose))
+    if msgtype == "tf2_msgs/msg/TFMessage":
+        return M.TFMessage([M.TransformStamped(
+            _header(ts.header), ts.child_frame_id,
+            M.Transform(_vector(ts.transform.translation), _quat(ts.transform.rotation)))
+            for ts in msg.transforms])  # fmt: skip
+    raise ValueError(f"no DDS type for {msgtype}")
+
+
+def bag_messages(path, topics=("/scan", "/odom", "/tf_static"), seconds: float | None = None):
+    """``[(t, topic, sample)]`` of a bag's ``topics`` in time order (``t``: the bag's receive
+    time, s), the first ``seconds`` of it; ``/tf_static`` messages first."""
+    from mfcl_jax.io.bag import open_bag
+
+    reader = open_bag(path)
+    try:
+        conns = [c for c in reader.connections if c.topic in topics]
+        out, t0 = [], None
+        for c, ns, raw in reader.messages(connections=conns):
+            t = ns * 1e-9
+            t0 = t if t0 is None else t0
+            if seconds is not None and t - t0 > seconds and c.topic != "/tf_static":
+                break
+            out.append((t, c.topic, from_rosbags(reader.deserialize(raw, c.msgtype), c.msgtype)))
+    finally:
+        reader.close()
+    out.sort(key=lambda e: (e[1] != "/tf_static", e[0]))
+    return out

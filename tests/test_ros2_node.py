@@ -161,10 +161,11 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
     from mfcl_jax.sources.dataset import load_dataset
 
     root, ds = walk
-    out, batch = tmp_path / "node.jsonl", tmp_path / "batch.jsonl"
+    out, batch, viz = tmp_path / "node.jsonl", tmp_path / "batch.jsonl", tmp_path / "run.mcap"
     listener = _Listener()
     node = subprocess.Popen(
         [MFCL, "ros2", "--floorplan", str(root / "bays.geojson"), "--out", str(out),
+         "--viz", str(viz),
          "--silence", "2", "--publish-tf", "--foxglove", "0"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
@@ -280,3 +281,9 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
     assert "Traceback" not in text
     written = read_decisions(out)
     assert [d["k"] for d in written] == list(range(1, total + 1))
+    assert "mfcl: restart: time went back" in text
+    from mcap.reader import make_reader
+
+    with viz.open("rb") as f:  # the MCAP written at the stop: every window
+        decided = [m for _, ch, m in make_reader(f).iter_messages() if ch.topic == "/mfcl/decision"]
+    assert len(decided) == total

@@ -125,9 +125,15 @@ def add_ros2_commands(subparsers) -> None:
         help="publish a dataset folder onto ROS 2 topics (try mfcl ros2 without a robot)",
         description="Publish a dataset folder's scans (LaserScan or PointCloud2), its "
         "odometry (nav_msgs/Odometry or /tf) and the LiDAR mounting (/tf_static) in time "
-        "order, as a robot does.",
+        "order, as a robot does; or a ROS bag's (--bag).",
     )
-    pl.add_argument("dataset", type=Path, help="dataset folder (odometry.tum, scans/)")
+    pl.add_argument("dataset", type=Path, nargs="?", help="dataset folder (odometry.tum, scans/)")
+    pl.add_argument(
+        "--bag",
+        type=Path,
+        help="a ROS 1 or ROS 2 bag instead: its --scan-topic, "
+        "--odom-topic and /tf_static messages, as recorded",
+    )
     pl.add_argument("--rate", type=float, default=1.0, help="times real time (1)")
     pl.add_argument("--scan-topic", default="/scan", help="(/scan)")
     pl.add_argument("--cloud", action="store_true", help="scans as PointCloud2")

@@ -139,6 +139,10 @@ def run_play(args) -> int:
 
     if not (math.isfinite(args.rate) and args.rate > 0):
         raise DataError(f"play: --rate must be > 0, got {args.rate}")
+    if (args.dataset is None) == (args.bag is None):
+        raise DataError("play: give a dataset folder or --bag, one of them")
+    if args.bag is not None:
+        return _play_bag(args)
     ds = load_dataset(args.dataset)
     o_times, o_poses = read_tum(args.dataset / "odometry.tum")  # at its own rate
     base = sensor_poses(o_poses, inverse_host(np.asarray(args.lidar_offset)))
@@ -154,6 +158,38 @@ def run_play(args) -> int:
     with StopSignals():
         try:
             player.play(ds.times, ds.scans, o_times, base, offset=args.time_offset)
+        except KeyboardInterrupt as e:
+            _err(f"mfcl: stopped after {player.sent} messages")
+            return stop_status(e)
+    _err(f"mfcl: {player.sent} messages published")
+    return 0
+
+
+def _play_bag(args) -> int:
+    from mfcl_jax.cli.signals import StopSignals, stop_status
+    from mfcl_jax.io.bag import open_bag
+    from mfcl_jax.ros2.dds import Bus
+    from mfcl_jax.ros2.play import Player, PlayParams, bag_messages
+
+    reader = open_bag(args.bag)
+    types = {c.topic: c.msgtype for c in reader.connections}
+    reader.close()
+    for topic in (args.scan_topic, args.odom_topic):
+        if topic not in types:
+            raise DataError(f"{args.bag}: no topic {topic}; topics: {sorted(types)}")
+    cloud = types[args.scan_topic].endswith("PointCloud2")
+    msgs = bag_messages(args.bag, (args.scan_topic, args.odom_topic, "/tf_static"))
+    bus = Bus()
+    player = Player(bus, PlayParams(scan_topic=args.scan_topic, cloud=cloud,
+                                    odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+    if not player.wait_for_readers(args.wait):
+        _err(f"mfcl: no reader of {args.scan_topic} and {args.odom_topic} after {args.wait:g} s; "
+             "playing anyway")  # fmt: skip
+    _err(f"mfcl: ROS 2 domain {bus.domain}: playing {len(msgs)} messages of {args.bag} at "
+         f"{args.rate:g}x")  # fmt: skip
+    with StopSignals():
+        try:
+            player.play_messages(msgs)
         except KeyboardInterrupt as e:
             _err(f"mfcl: stopped after {player.sent} messages")
             return stop_status(e)

@@ -46,7 +46,7 @@ GROUPS = {
     "mcl": ("test_mcl", "test_mcl_model"),
 }  # fmt: skip
 WEIGHTS = {
-    "decision": 125, "robot": 85, "benchmark": 40, "frontend": 48, "test_study": 45,
+    "decision": 125, "robot": 110, "benchmark": 40, "frontend": 48, "test_study": 45,
     "mcl": 35, "test_real_floorplans": 13, "families": 10, "test_sim": 8,
     "test_identifiability": 8, "test_path_bound": 18,
 }  # fmt: skip

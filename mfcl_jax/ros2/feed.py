@@ -156,7 +156,7 @@ class TopicFeed:
                 self._warn(str(e))
             self._mounts.clear()
 
-    def _mount(self, frame: str):
+    def mount(self, frame: str):
         """The planar mount of the scans of ``frame``, or None while ``/tf_static`` lacks it."""
         if self.params.mount is not None:
             return self.params.mount
@@ -245,7 +245,7 @@ class TopicFeed:
                 continue
             if t > ot[-1]:
                 break  # wait for odometry at or after the scan: interpolate, as the batch does
-            mount = self._mount(frame)
+            mount = self.mount(frame)
             if mount is None:
                 break  # waiting for /tf_static
             queue.pop(0)
@@ -291,7 +291,7 @@ class TopicFeed:
             return f"waiting for {self.params.scan_topic}"
         if self._odom.heard is None:
             return f"waiting for {self.params.odom_topic}"
-        if self.frame_id and self._mount(self.frame_id) is None:
+        if self.frame_id and self.mount(self.frame_id) is None:
             return (f"waiting for {self.params.tf_static_topic}: "
                     f"{self.params.base_frame} -> {self.frame_id}")  # fmt: skip
         return "waiting for odometry at the scans' stamps"
@@ -304,6 +304,11 @@ class TopicFeed:
     @property
     def segment(self) -> int:
         return self._segment
+
+    @property
+    def newest(self) -> float | None:
+        """The newest scan stamp heard (s)."""
+        return self._scans.newest
 
     def sequence(self) -> ScanSequence:
         n = len(self._planar_scans)

@@ -73,16 +73,18 @@ class Node:
         self._k, self._segment, self._t = 0, 0, None
         self._anchor = None  # the committed anchor (plan frame) of the current segment
         self._published_segment = None
-        self.feed = TopicFeed(bus, params.feed, self._event)
+        self.feed = TopicFeed(bus, params.feed, self.event)
         self._rasters = None
         self.on_window = None  # callback(result, record): --viz, tests
-        self._event("start", "starting: loading the floor plan and the layer", "DEFER")
+        self.event("start", "starting: loading the floor plan and the layer", "DEFER")
 
     # ------------------------------------------------------------ publishing
     def status(self, obj: dict) -> None:
         self._status.write(M.String(data=json.dumps(obj, allow_nan=False)))
 
-    def _event(self, event: str, reason: str, state: str | None = None) -> None:
+    def event(self, event: str, reason: str, state: str | None = None) -> None:
+        """An event on the status topic (``silent`` is always a DEFER), said on stderr too
+        for ``warning``, ``silent`` and ``restart``."""
         if event == "silent":
             state = "DEFER"
         if event in ("warning", "silent", "restart"):
@@ -95,12 +97,10 @@ class Node:
         from mfcl_jax.robot.covariance import pose_covariance, to_base
         from mfcl_jax.se2 import inverse_host
 
-        if self._rasters is None:
-            self._rasters = self.floorplan.rasterize(res=0.05)
         p = rec["pose"]
         ox, oy = self.floorplan.offset
         sensor = np.array([p["x"] - ox, p["y"] - oy, math.radians(p["yaw_deg"])])
-        mount = self.feed._mount(self.feed.frame_id) or (0.0, 0.0, 0.0)
+        mount = self.feed.mount(self.feed.frame_id) or (0.0, 0.0, 0.0)
         base = sensor_poses(sensor[None], inverse_host(np.asarray(mount)))[0]
         cov = to_base(pose_covariance(self._rasters, result.points, sensor), sensor, base)
         c6 = np.zeros((6, 6))
@@ -175,8 +175,9 @@ class Node:
         """Decides window after window (``loc``: a ``Localizer`` on the plan) until a signal
         raises ``KeyboardInterrupt``; a time jump starts a new segment."""
         self.floorplan, self.localize = loc.floorplan, loc.params
+        self._rasters = self.floorplan.rasterize(res=0.05)  # the covariance's distance field
         why = self.feed.waiting() or "scans arriving"
-        self._event("start", f"ready, {why}; a window needs {loc.params.d_s:g} m of travel",
+        self.event("start", f"ready, {why}; a window needs {loc.params.d_s:g} m of travel",
                     "DEFER")  # fmt: skip
         prepare = True
         while True:
@@ -191,9 +192,6 @@ class Node:
             prepare = False
             self._segment += 1
             self._anchor = None
-            self._event("restart", f"time went back to t={self.feed_newest():.3f} s: the layer "
-                        f"starts over (segment {self._segment})")  # fmt: skip
+            self.event("restart", f"time went back to t={self.feed.newest or 0.0:.3f} s: the "
+                       f"layer starts over (segment {self._segment})")  # fmt: skip
             self.feed.next_segment()
-
-    def feed_newest(self) -> float:
-        return float(self.feed._scans.newest or 0.0)

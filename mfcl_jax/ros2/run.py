@@ -103,12 +103,12 @@ def run_node(args, progress) -> int:
             why = e
         except Exception as e:
             if node is not None and isinstance(e, DataError | OSError | ValueError):
-                node._event("stop", f"error: {e}")
+                node.event("stop", f"error: {e}")
             raise
         with signals.writing():
             records = node.records if node is not None else []
             if node is not None:
-                node._event("stop", f"stopped by {stop_name(why)}")
+                node.event("stop", f"stopped by {stop_name(why)}")
             _err(f"mfcl: stopped by {stop_name(why)}: {verdict(records)}")
             if node is not None:
                 counts = {k: v for k, v in node.feed.counts.items() if v}

@@ -24,7 +24,8 @@ message; the node's resident memory every 5 s (``/proc``); ``/initialpose`` agai
 truth (the simulator's, or the corrected log's poses matched to the bag's scans).
 
 Writes ``results/bench_ros2_windows.csv``, ``results/bench_ros2_memory.csv``,
-``results/bench_ros2.md`` and ``results/bench_ros2.png``. Usage:
+``results/bench_ros2.md`` and ``results/bench_ros2.png``, and pastes the table into
+``docs/speed.md`` (block ``bench_ros2``; ``--paste`` alone re-pastes the written one). Usage:
 ``python benchmarks/ros2_node.py [--minutes 30] [--only office|intel]`` (the minutes of the
 bag, plus about 5 minutes).
 """
@@ -244,7 +245,10 @@ def main(argv=None) -> int:
     ap.add_argument("--minutes", type=float, default=30.0, help="minutes of the Intel bag (30)")
     ap.add_argument("--only", choices=("office", "intel"))
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results")
+    ap.add_argument("--paste", action="store_true", help="only paste the written table")
     args = ap.parse_args(argv)
+    if args.paste:
+        return _paste(args.out / "bench_ros2.md")
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_ros2_"))
     env = dict(os.environ, CYCLONEDDS_URI=LOOPBACK, ROS_DOMAIN_ID=str(150 + os.getpid() % 50),
                MFCL_CACHE_DIR=str(tmp / "cache"), JAX_PLATFORMS="cpu")  # fmt: skip
@@ -292,6 +296,19 @@ def main(argv=None) -> int:
     )
     _figure(windows, memory, args.out / "bench_ros2.png")
     print(table)
+    return _paste(args.out / "bench_ros2.md")
+
+
+def _paste(md: pathlib.Path) -> int:
+    """The table of ``md`` (its title line left out) into ``docs/speed.md``'s block."""
+    from mfcl_jax.study.readme import update_block
+
+    lines = [x for x in md.read_text().splitlines() if not x.startswith("# ")]
+    with tempfile.TemporaryDirectory() as tmp:
+        table = pathlib.Path(tmp) / "table.md"
+        table.write_text("\n".join(lines).strip("\n") + "\n")
+        if not update_block(ROOT / "docs" / "speed.md", "bench_ros2", table):
+            log("docs/speed.md has no bench_ros2 block: not pasted")
     return 0
 
 

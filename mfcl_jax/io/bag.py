@@ -38,7 +38,7 @@ from mfcl_jax.io.timesync import odometry_at
 from mfcl_jax.io.tum import unit_quaternions, yaw_from_quat
 from mfcl_jax.io.units import check_metres
 
-__all__ = ["read_tf_static", "BagScans", "read_bag", "open_bag"]
+__all__ = ["read_tf_static", "BagScans", "read_bag", "open_bag", "laserscan_points"]
 
 _SCAN_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2")
 _ODOM_TYPES = ("nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage")
@@ -116,7 +116,9 @@ class _Odometry:
         return r[:, 0], np.stack([r[:, 1], r[:, 2], yaw_from_quat(q)], -1)
 
 
-def _laserscan_points(m, xyz: bool) -> np.ndarray:
+def laserscan_points(m, xyz: bool) -> np.ndarray:
+    """The points of a ``sensor_msgs/LaserScan`` (returns within ``[range_min, range_max]``;
+    a bag's or a live topic's message), ``(n, 2)`` or ``(n, 3)`` with z = 0."""
     r = np.asarray(m.ranges, float)
     a = m.angle_min + m.angle_increment * np.arange(len(r))
     ok = np.isfinite(r) & (r >= m.range_min) & (r <= m.range_max)
@@ -215,7 +217,7 @@ def read_bag(
                 s_t.append(_stamp(m))
                 frame = frame or m.header.frame_id
                 if con.msgtype.endswith("LaserScan"):
-                    scans.append(_laserscan_points(m, xyz))
+                    scans.append(laserscan_points(m, xyz))
                 else:
                     pts, nd = pointcloud2_points(m, where, xyz)
                     scans.append(pts)

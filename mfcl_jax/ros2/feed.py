@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mfcl_jax.io.errors import DataError
+from mfcl_jax.io.tf_static import sensor_poses
 from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2
 from mfcl_jax.ros2 import dds
 from mfcl_jax.sources.planar import PlanarParams, PlanarStream
@@ -206,7 +207,7 @@ class TopicFeed:
         return bool(rows)
 
     def _read_scans(self, now: float) -> bool:
-        from mfcl_jax.io.bag import _laserscan_points
+        from mfcl_jax.io.bag import laserscan_points
         from mfcl_jax.io.pointcloud2 import pointcloud2_points
         from mfcl_jax.ros2.messages import stamp_of
 
@@ -219,7 +220,7 @@ class TopicFeed:
                 if self.params.cloud:
                     pts = pointcloud2_points(m, where, xyz=xyz)[0]
                 else:
-                    pts = _laserscan_points(m, xyz)
+                    pts = laserscan_points(m, xyz)
             except DataError as e:
                 self._warn(f"{e}; left out")
                 continue
@@ -252,8 +253,6 @@ class TopicFeed:
             i = int(np.searchsorted(ot, t))
             lo, hi = max(i - 1, 0), min(i + 1, len(ot))
             base = interpolate_se2(ot[lo:hi], np.asarray(self._odom_p[e][lo:hi]), [t])[0]
-            from mfcl_jax.io.tf_static import sensor_poses
-
             self._times.append(t)
             self._poses.append(sensor_poses(base[None], mount)[0])
             self._planar_scans += self._planar.push(pts, f"{self.params.scan_topic} t={t:.9f}")

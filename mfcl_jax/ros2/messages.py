@@ -4,7 +4,7 @@ ROS 2 maps a message ``pkg/msg/Type`` to the DDS type ``pkg::msg::dds_::Type_`` 
 same fields in the same order, and serialises it as CDR; these dataclasses declare exactly
 that, so a ROS 2 node (any RMW speaking DDS: Cyclone DDS, Fast DDS) and this package read
 each other's samples. Field names follow the ``.msg`` files, so the readers in ``mfcl_jax.io``
-(``bag._laserscan_points``, ``pointcloud2.pointcloud2_points``, ``tf_static.static_edges``)
+(``bag.laserscan_points``, ``pointcloud2.pointcloud2_points``, ``tf_static.static_edges``)
 take these samples as they take a bag's messages.
 """
 

@@ -129,7 +129,6 @@ def run_play(args) -> int:
     """``mfcl play DATASET``: publishes the dataset once, at ``--rate``."""
     import numpy as np
 
-    from mfcl_jax.cli.signals import StopSignals, stop_status
     from mfcl_jax.io.tf_static import sensor_poses
     from mfcl_jax.io.tum import read_tum
     from mfcl_jax.ros2.dds import Bus
@@ -146,27 +145,18 @@ def run_play(args) -> int:
     ds = load_dataset(args.dataset)
     o_times, o_poses = read_tum(args.dataset / "odometry.tum")  # at its own rate
     base = sensor_poses(o_poses, inverse_host(np.asarray(args.lidar_offset)))
-    bus = Bus()
-    player = Player(bus, PlayParams(scan_topic=args.scan_topic, cloud=args.cloud,
-                                    odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+    player = Player(Bus(), PlayParams(scan_topic=args.scan_topic, cloud=args.cloud,
+                                      odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
     player.mount(args.lidar_offset)
-    if not player.wait_for_readers(args.wait):
-        _err(f"mfcl: no reader of {args.scan_topic} and {args.odom_topic} after {args.wait:g} s; "
-             "playing anyway")  # fmt: skip
-    _err(f"mfcl: ROS 2 domain {bus.domain}: playing {len(ds.times)} scans of {args.dataset} "
-         f"at {args.rate:g}x")  # fmt: skip
-    with StopSignals():
-        try:
-            player.play(ds.times, ds.scans, o_times, base, offset=args.time_offset)
-        except KeyboardInterrupt as e:
-            _err(f"mfcl: stopped after {player.sent} messages")
-            return stop_status(e)
-    _err(f"mfcl: {player.sent} messages published")
-    return 0
+    return _play(
+        args,
+        player,
+        f"{len(ds.times)} scans of {args.dataset}",
+        lambda: player.play(ds.times, ds.scans, o_times, base, offset=args.time_offset),
+    )
 
 
 def _play_bag(args) -> int:
-    from mfcl_jax.cli.signals import StopSignals, stop_status
     from mfcl_jax.io.bag import open_bag
     from mfcl_jax.ros2.dds import Bus
     from mfcl_jax.ros2.play import Player, PlayParams, bag_messages
@@ -179,17 +169,25 @@ def _play_bag(args) -> int:
             raise DataError(f"{args.bag}: no topic {topic}; topics: {sorted(types)}")
     cloud = types[args.scan_topic].endswith("PointCloud2")
     msgs = bag_messages(args.bag, (args.scan_topic, args.odom_topic, "/tf_static"))
-    bus = Bus()
-    player = Player(bus, PlayParams(scan_topic=args.scan_topic, cloud=cloud,
-                                    odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+    player = Player(Bus(), PlayParams(scan_topic=args.scan_topic, cloud=cloud,
+                                      odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+    return _play(
+        args, player, f"{len(msgs)} messages of {args.bag}", lambda: player.play_messages(msgs)
+    )
+
+
+def _play(args, player, what: str, go) -> int:
+    """Waits for readers, runs ``go()`` until it ends or a signal stops it (130 / 143)."""
+    from mfcl_jax.cli.signals import StopSignals, stop_status
+    from mfcl_jax.ros2.dds import domain_id
+
     if not player.wait_for_readers(args.wait):
         _err(f"mfcl: no reader of {args.scan_topic} and {args.odom_topic} after {args.wait:g} s; "
              "playing anyway")  # fmt: skip
-    _err(f"mfcl: ROS 2 domain {bus.domain}: playing {len(msgs)} messages of {args.bag} at "
-         f"{args.rate:g}x")  # fmt: skip
+    _err(f"mfcl: ROS 2 domain {domain_id()}: playing {what} at {args.rate:g}x")
     with StopSignals():
         try:
-            player.play_messages(msgs)
+            go()
         except KeyboardInterrupt as e:
             _err(f"mfcl: stopped after {player.sent} messages")
             return stop_status(e)

@@ -166,7 +166,7 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
     node = subprocess.Popen(
         [MFCL, "ros2", "--floorplan", str(root / "bays.geojson"), "--out", str(out),
          "--viz", str(viz),
-         "--silence", "2", "--publish-tf", "--foxglove", "0"],
+         "--silence", "2", "--publish-tf", "--foxglove", "0", "--reliable"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     err: list[str] = []
@@ -189,7 +189,7 @@ def test_node_over_dds_commits_publishes_and_survives_faults(walk, ros2_env, tmp
         first = next(d for d in want if d["state"] == "COMMIT")
         assert 1 < first["k"] < n  # the walk abstains at first, then commits before its end
         short = want[: first["k"] - 1]
-        player = Player(Bus(), PlayParams(rate=RATE))
+        player = Player(Bus(), PlayParams(rate=RATE, reliable=True))
         player.mount(MOUNT)
         assert player.wait_for_readers()
 

@@ -113,6 +113,13 @@ def add_ros2_commands(subparsers) -> None:
         help="address the Foxglove server listens on (127.0.0.1: this machine; 0.0.0.0: any)",
     )
     ro.add_argument("--quiet", action="store_true", help="no per-window status lines on stderr")
+    ro.add_argument(
+        "--reliable",
+        action="store_true",
+        help="read the scan and odometry topics reliably (their writers must be reliable, "
+        "as mfcl play --reliable is): nothing lost on a loaded machine; the default, best "
+        "effort, matches any writer, as nav2's sensor subscriptions do",
+    )
     from mfcl_jax.cli.floorplan import add_rosmap_flags
 
     add_rosmap_flags(ro)
@@ -138,6 +145,11 @@ def add_ros2_commands(subparsers) -> None:
     pl.add_argument("--scan-topic", default="/scan", help="(/scan)")
     pl.add_argument("--cloud", action="store_true", help="scans as PointCloud2")
     pl.add_argument("--odom-topic", default="/odom", help="/odom (Odometry) or /tf")
+    pl.add_argument(
+        "--reliable",
+        action="store_true",
+        help="write scans and odometry reliably, keep all (for mfcl ros2 --reliable)",
+    )
     pl.add_argument("--lidar-offset", type=lidar_offset_arg, metavar="X,Y,YAW_DEG",
                     default=(0.0, 0.0, 0.0), help="LiDAR pose on the base published on "
                     "/tf_static (the odometry published is the base's)")  # fmt: skip

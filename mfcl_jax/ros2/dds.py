@@ -11,6 +11,9 @@ every reader here matches the usual writers and every writer matches the usual r
   that a reader started later, such as ``ros2 topic echo --qos-durability transient_local``,
   still gets the last pose; nav2's AMCL subscribes reliable and volatile, which matches).
 - ``RELIABLE``: reliable, volatile, keep last 10 (``rclcpp::QoS(10)``, the default; the status).
+- ``STREAM``: reliable, volatile, keep all: sensor streams that must arrive whole (``mfcl
+  ros2 --reliable`` and ``mfcl play --reliable``: replays, tests). A reliable reader matches
+  only reliable writers; over best effort, a loaded machine loses UDP samples.
 
 The network interfaces and discovery peers are Cyclone DDS's own settings (``CYCLONEDDS_URI``),
 as for a ROS 2 node running ``rmw_cyclonedds_cpp``.
@@ -23,7 +26,7 @@ import re
 
 from mfcl_jax.io.errors import DataError
 
-__all__ = ["Bus", "domain_id", "dds_topic", "take", "SENSOR", "LATCHED", "RELIABLE"]
+__all__ = ["Bus", "domain_id", "dds_topic", "take", "SENSOR", "LATCHED", "RELIABLE", "STREAM"]
 
 _NAME = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
@@ -39,10 +42,12 @@ def _qos():
                   Policy.Durability.TransientLocal, Policy.History.KeepLast(100))  # fmt: skip
     reliable = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
                    Policy.Durability.Volatile, Policy.History.KeepLast(10))  # fmt: skip
-    return sensor, latched, reliable
+    stream = Qos(Policy.Reliability.Reliable(duration(seconds=10)), Policy.Durability.Volatile,
+                 Policy.History.KeepAll)  # fmt: skip
+    return sensor, latched, reliable, stream
 
 
-SENSOR, LATCHED, RELIABLE = "sensor", "latched", "reliable"
+SENSOR, LATCHED, RELIABLE, STREAM = "sensor", "latched", "reliable", "stream"
 
 
 def domain_id(env=None) -> int:
@@ -103,7 +108,7 @@ class Bus:
             uri = os.environ.get("CYCLONEDDS_URI", "")
             where = f" (CYCLONEDDS_URI={uri!r})" if uri else ""
             raise DataError(f"DDS domain {self.domain}: cannot start{where}: {e}") from None
-        self._qos = dict(zip((SENSOR, LATCHED, RELIABLE), _qos(), strict=True))
+        self._qos = dict(zip((SENSOR, LATCHED, RELIABLE, STREAM), _qos(), strict=True))
         self._topics: dict = {}
 
     def _topic(self, name: str, kind):

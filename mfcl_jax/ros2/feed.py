@@ -63,6 +63,8 @@ class FeedParams:
             from ``/tf_static``.
         planar: how scans become planar (2-D, 3-D band, the mount's height and tilt).
         silence_s: seconds without messages on a topic before it is called silent.
+        reliable: read the scans and odometry reliably (``dds.STREAM``; the writers must be
+            reliable) instead of best effort (``dds.SENSOR``, the default: any writer).
     """
 
     scan_topic: str = "/scan"
@@ -74,6 +76,7 @@ class FeedParams:
     planar: PlanarParams = field(default_factory=PlanarParams)
     silence_s: float = 5.0
     tf_static_topic: str = "/tf_static"
+    reliable: bool = False
 
 
 class _Stream:
@@ -114,9 +117,10 @@ class TopicFeed:
         self.params, self.notify, self.poll = params, notify, poll
         self._clock = clock
         kind = M.PointCloud2 if params.cloud else M.LaserScan
-        self._scan_reader = bus.reader(params.scan_topic, kind)
+        qos = dds.STREAM if params.reliable else dds.SENSOR
+        self._scan_reader = bus.reader(params.scan_topic, kind, qos)
         odom_kind = M.TFMessage if params.odom_topic.strip("/") == "tf" else M.Odometry
-        self._odom_reader = bus.reader(params.odom_topic, odom_kind)
+        self._odom_reader = bus.reader(params.odom_topic, odom_kind, qos)
         self._tf_reader = None
         if params.mount is None:
             self._tf_reader = bus.reader(params.tf_static_topic, M.TFMessage, dds.LATCHED)

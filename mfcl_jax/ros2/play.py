@@ -69,7 +69,9 @@ def _transform(t: float, parent: str, child: str, pose) -> M.TransformStamped:
 
 @dataclass(frozen=True)
 class PlayParams:
-    """Topics and frames of the played recording (the node's defaults)."""
+    """Topics and frames of the played recording (the node's defaults); ``reliable``: scans
+    and odometry written reliably, keep all (``dds.STREAM``), for a node run with
+    ``--reliable`` (nothing lost on a loaded machine), instead of as a LiDAR driver does."""
 
     scan_topic: str = "/scan"
     cloud: bool = False
@@ -77,6 +79,7 @@ class PlayParams:
     frames: tuple[str, str] = ("odom", "base_link")
     scan_frame: str = "laser"
     rate: float = 1.0
+    reliable: bool = False
 
 
 class Player:
@@ -89,10 +92,11 @@ class Player:
 
     def __init__(self, bus, params: PlayParams | None = None):
         self.params = p = params or PlayParams()
+        scan_qos, odom_qos = (dds.STREAM, dds.STREAM) if p.reliable else (dds.SENSOR, dds.RELIABLE)
         self._scan = bus.writer(p.scan_topic, M.PointCloud2 if p.cloud else M.LaserScan,
-                                dds.SENSOR)  # fmt: skip
+                                scan_qos)  # fmt: skip
         tf = p.odom_topic.strip("/") == "tf"
-        self._odom = bus.writer(p.odom_topic, M.TFMessage if tf else M.Odometry, dds.RELIABLE)
+        self._odom = bus.writer(p.odom_topic, M.TFMessage if tf else M.Odometry, odom_qos)
         self._tf_static = bus.writer("/tf_static", M.TFMessage, dds.LATCHED)
         self.sent = 0
 

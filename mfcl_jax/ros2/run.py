@@ -41,7 +41,7 @@ def node_params(args):
         scan_topic=args.cloud_topic or args.scan_topic, cloud=args.cloud_topic is not None,
         odom_topic=args.odom_topic, odom_frames=(args.odom_frame, args.base_frame),
         base_frame=args.base_frame, mount=planar_mount, planar=planar_params(args, mount3d),
-        silence_s=float(args.silence),
+        silence_s=float(args.silence), reliable=args.reliable,
     )  # fmt: skip
     return NodeParams(feed=feed, pose_topic=args.pose_topic, status_topic=args.status_topic,
                       map_frame=args.map_frame, publish_tf=args.publish_tf)  # fmt: skip
@@ -146,7 +146,8 @@ def run_play(args) -> int:
     o_times, o_poses = read_tum(args.dataset / "odometry.tum")  # at its own rate
     base = sensor_poses(o_poses, inverse_host(np.asarray(args.lidar_offset)))
     player = Player(Bus(), PlayParams(scan_topic=args.scan_topic, cloud=args.cloud,
-                                      odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+                                      odom_topic=args.odom_topic, rate=args.rate,
+                                      reliable=args.reliable))  # fmt: skip
     player.mount(args.lidar_offset)
     return _play(
         args,
@@ -170,7 +171,8 @@ def _play_bag(args) -> int:
     cloud = types[args.scan_topic].endswith("PointCloud2")
     msgs = bag_messages(args.bag, (args.scan_topic, args.odom_topic, "/tf_static"))
     player = Player(Bus(), PlayParams(scan_topic=args.scan_topic, cloud=cloud,
-                                      odom_topic=args.odom_topic, rate=args.rate))  # fmt: skip
+                                      odom_topic=args.odom_topic, rate=args.rate,
+                                      reliable=args.reliable))  # fmt: skip
     return _play(
         args, player, f"{len(msgs)} messages of {args.bag}", lambda: player.play_messages(msgs)
     )

@@ -36,6 +36,8 @@ import jax
 import numpy as np
 import pandas as pd
 
+from mfcl_jax.se2 import wrap_host
+
 LANES = {"ours_unique": 1e-3, "ours_unique_a1": 1e-1, "ours_unique_a2": 1e-2,
          "ours_unique_a4": 1e-4, "ours_unique_a6": 1e-6}  # fmt: skip
 
@@ -137,7 +139,7 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     x_now = np.asarray(X[-1], np.float64)
     cn, an = se2.compose_host(A, x_now), se2.compose_host(a, x_now)
     far = (np.hypot(*(cn - an)[:, :2].T) > 1.0) | (
-        np.abs(np.angle(np.exp(1j * (cn[:, 2] - an[2])))) > math.radians(5.0)
+        np.abs(wrap_host(cn[:, 2] - an[2])) > math.radians(5.0)
     )
     # and the edge of A*'s own peak, which the lane also fits
     _, Le = _edge(jnp.asarray(a, jnp.float32), jnp.asarray(x_now, jnp.float32), pe, fields)

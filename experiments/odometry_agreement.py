@@ -43,7 +43,7 @@ def _recordings(cache: str):
 def steps(source: str, rec) -> pd.DataFrame:
     """One row per pair of consecutive windows of ``rec``."""
     from mfcl_jax import windows as W
-    from mfcl_jax.io.timesync import wrap_angle as wrap
+    from mfcl_jax.se2 import wrap_host as wrap
 
     w = W.cut(rec.seq, W.WindowParams(d_s=6.0))
     truth = np.asarray(rec.truth.poses)[w.keyframes[w.bounds[:, 1]]]

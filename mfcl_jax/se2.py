@@ -32,6 +32,7 @@ __all__ = [
     "distance_pair",
     "compose_host",
     "inverse_host",
+    "wrap_host",
 ]
 
 
@@ -185,6 +186,13 @@ def distance_pair(a, b):
     return dxy, jnp.abs(angle_diff(a[..., 2], b[..., 2]))
 
 
+def wrap_host(theta):
+    """Wraps angles to ``[-pi, pi]`` in float64 NumPy (the host twin of ``wrap``; a Python
+    float in, a NumPy float out)."""
+    theta = np.asarray(theta, np.float64)
+    return np.arctan2(np.sin(theta), np.cos(theta))
+
+
 def compose_host(a, b) -> np.ndarray:
     """``a b`` for pose rows ``(*, 3)`` in float64 NumPy (the host twin of ``compose``: no
     compilation per shape, no float32 rounding of large frame offsets)."""
@@ -192,7 +200,7 @@ def compose_host(a, b) -> np.ndarray:
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
     y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
-    return np.stack([x, y, np.angle(np.exp(1j * (a[..., 2] + b[..., 2])))], -1)
+    return np.stack([x, y, wrap_host(a[..., 2] + b[..., 2])], -1)
 
 
 def inverse_host(a) -> np.ndarray:
@@ -201,4 +209,4 @@ def inverse_host(a) -> np.ndarray:
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     x = -(c * a[..., 0] + s * a[..., 1])
     y = -(-s * a[..., 0] + c * a[..., 1])
-    return np.stack([x, y, np.angle(np.exp(-1j * a[..., 2]))], -1)
+    return np.stack([x, y, wrap_host(-a[..., 2])], -1)

@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 from mfcl_jax.cli import main
-from mfcl_jax.cli.signals import Stopped, StopSignals
 from mfcl_jax.io import read_decisions
+from mfcl_jax.robot.signals import Stopped, StopSignals
 
 WAYPOINTS = np.array([[1.0, 4.2], [3.0, 1.8], [27.0, 1.8]])  # 109 scans, 8 windows of 6 m
 MFCL = str(Path(sys.executable).parent / "mfcl")

@@ -26,6 +26,7 @@ from mfcl_jax.bench.config import BenchmarkConfig, validate
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.frontend.params import FrontendParams
 from mfcl_jax.score import CORRECT_XY, CORRECT_YAW_DEG, pose_at
+from mfcl_jax.se2 import wrap_host
 from mfcl_jax.windows import ScanMatchParams
 
 __all__ = ["VARIANTS", "window_hits", "recall_table", "main"]
@@ -45,7 +46,7 @@ def window_hits(cands, i: int, Y) -> tuple[int, bool, bool]:
     if len(s) == 0:
         return 0, False, False
     e = np.hypot(p[:, 0] - Y[0], p[:, 1] - Y[1])
-    dth = np.degrees(np.abs(np.angle(np.exp(1j * (p[:, 2] - Y[2])))))
+    dth = np.degrees(np.abs(wrap_host(p[:, 2] - Y[2])))
     ok = (e < CORRECT_XY) & (dth < CORRECT_YAW_DEG)
     return len(s), bool(ok[int(np.argmax(s))]), bool(ok.any())
 

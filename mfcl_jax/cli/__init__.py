@@ -43,6 +43,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from mfcl_jax.floorplan.model import FloorplanError
     from mfcl_jax.io.errors import DataError
+    from mfcl_jax.robot.signals import exit_on_signal
 
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning
@@ -51,6 +52,9 @@ def main(argv=None) -> int:
         except (FloorplanError, DataError, OSError) as e:
             print(f"mfcl: error: {e}", file=sys.stderr)
             return 2
+        finally:
+            if argv is None:  # the process's own command: its shutdown is not interrupted
+                exit_on_signal()
 
 
 if __name__ == "__main__":

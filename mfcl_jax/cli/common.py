@@ -77,7 +77,7 @@ def verdict(records) -> str:
 
 
 def stopped(stop, what: str) -> None:
-    from mfcl_jax.cli.signals import stop_name, stop_status
+    from mfcl_jax.robot.signals import stop_name, stop_status
 
     err(f"mfcl: stopped by {stop_name(stop)}: {what}; exit status {stop_status(stop)}")
 

@@ -62,12 +62,18 @@ def planar_params(args, mount=None):
     return PlanarParams(dim=args.input_dim, band=band, mount=mount)
 
 
+DATASET_PARTS = ("odometry.tum", "groundtruth.tum", "scans")
+
+
 def dataset_folders(args) -> list[Path]:
     """The dataset folders named: each DATASET, or the dataset folders inside a single
-    folder that has no ``odometry.tum`` itself (sorted by name)."""
+    folder that has no ``odometry.tum`` itself (sorted by name): every sub-folder holding a
+    part of a dataset (``odometry.tum``, ``groundtruth.tum`` or ``scans/``), so that one
+    lacking a part is named and counted with the bad inputs, never silently left out."""
     folders = list(args.dataset)
     if len(folders) == 1 and folders[0].is_dir() and not (folders[0] / "odometry.tum").exists():
-        inner = sorted(p for p in folders[0].iterdir() if (p / "odometry.tum").is_file())
+        inner = sorted(p for p in folders[0].iterdir()
+                       if p.is_dir() and any((p / n).exists() for n in DATASET_PARTS))  # fmt: skip
         if inner:
             return inner
     return folders
@@ -152,8 +158,9 @@ def load_input(args, folders=()):
 def _check_scale(fp, seq, plan, src) -> None:
     """A plan and scans whose scales disagree are refused for bags and CARMEN logs too, as
     for dataset folders (``io.units``)."""
-    from mfcl_jax.io.units import check_metres, check_plan_scale
+    from mfcl_jax.io.units import check_metres, check_plan_scale, check_some_points
 
+    check_some_points(list(seq.scans), str(src))
     names = [f"{src} scan at t={t:.9f}" for t in seq.times]
     median = check_metres(list(seq.scans), names, str(src))
     check_plan_scale(fp.bounds, median, str(plan), str(src))

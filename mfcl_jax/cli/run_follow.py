@@ -14,12 +14,13 @@ __all__ = ["follow"]
 
 def follow(args, progress: Progress) -> int:
     """``--follow DIR``: decisions of a dataset folder that is being written, streamed; it
-    stops after ``--idle-timeout`` s without new data, on Ctrl-C or on SIGTERM (exit 0 in
-    every case), and writes ``--out`` (and ``--viz``) then."""
+    stops after ``--idle-timeout`` s without new data (exit 0), on Ctrl-C or on SIGTERM (exit
+    0), or at a bad input (a scan or odometry line that cannot be read: exit 2, the error
+    named), and writes ``--out`` (and ``--viz``) with what was decided, whatever stopped it."""
     from mfcl_jax.cli.inputs import check_inputs, input_paths, mount_flags, planar_params
-    from mfcl_jax.cli.signals import StopSignals, stop_name
     from mfcl_jax.io import check_output, write_decisions
     from mfcl_jax.robot.live import Follower
+    from mfcl_jax.robot.signals import StopSignals, stop_name
     from mfcl_jax.sources.dataset import FLOORPLAN_NAMES
 
     folder = args.follow
@@ -46,12 +47,19 @@ def follow(args, progress: Progress) -> int:
         check_viz(args.viz, [*input_paths(args, [folder]), args.out])
     follower = Follower(folder, planar, idle_timeout=args.idle_timeout)
     records, state = [], {"viz": None}
-    why = f"no new data for {args.idle_timeout:g} s"
+    why, code = f"no new data for {args.idle_timeout:g} s", 0
     with StopSignals() as signals:
         try:
-            _run_follow(args, progress, follower, args.floorplan or plans[0], records, state)
-        except KeyboardInterrupt as e:
-            why = stop_name(e)
+            stop = signals.run(
+                lambda: _run_follow(
+                    args, progress, follower, args.floorplan or plans[0], records, state
+                )
+            )
+            if stop is not None:
+                why = stop_name(stop)
+        except DataError as e:
+            err(f"mfcl: error: {e}")
+            why, code = "bad input, named above; exit status 2", 2
         with signals.writing():
             for line in follower.pending():
                 err(f"mfcl: warning: {line}")
@@ -65,7 +73,7 @@ def follow(args, progress: Progress) -> int:
                 err(f"viz: {viz.close()}")
             elif args.viz is not None and state.get("dropped") is None:
                 err(f"mfcl: {args.viz} not written: stopped before the floor plan was loaded")
-    return 0
+    return code
 
 
 def _run_follow(args, progress, follower, plan, records: list, state: dict) -> None:

@@ -21,8 +21,8 @@ def localize_many(args, folders, progress: Progress) -> int:
     written, and the exit status is 2. Ctrl-C or SIGTERM stops the batch: the datasets
     decided so far are written, exit 130 or 143."""
     from mfcl_jax.cli.inputs import check_inputs, input_paths
-    from mfcl_jax.cli.signals import StopSignals, stop_status
     from mfcl_jax.io import check_output, write_decisions
+    from mfcl_jax.robot.signals import StopSignals, stop_status
     from mfcl_jax.robot.status import summary_table
 
     if args.out is not None:
@@ -46,12 +46,9 @@ def localize_many(args, folders, progress: Progress) -> int:
     inputs = input_paths(args, folders)
     for o in outs:
         check_output(o, inputs=inputs)
-    results, bad, stop = {}, {}, None
+    results, bad = {}, {}
     with StopSignals() as signals:
-        try:
-            _run_many(args, folders, progress, results, bad)
-        except KeyboardInterrupt as e:
-            stop = e
+        stop = signals.run(lambda: _run_many(args, folders, progress, results, bad))
         with signals.writing():
             for i in sorted(results):
                 write_decisions(outs[i], results[i].records)

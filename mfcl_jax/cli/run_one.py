@@ -17,8 +17,8 @@ def localize_one(args, folders, progress: Progress) -> int:
     """One dataset folder, bag or CARMEN log, streamed window by window. Ctrl-C or SIGTERM
     stops it: the windows decided so far are written (and ``--viz``), exit 130 or 143."""
     from mfcl_jax.cli.inputs import input_paths
-    from mfcl_jax.cli.signals import StopSignals, stop_status
     from mfcl_jax.io import check_output, write_decisions
+    from mfcl_jax.robot.signals import StopSignals, stop_status
 
     src = folders[0] if folders else (args.bag or args.carmen)
     out = args.out or Path("decisions.jsonl")
@@ -29,12 +29,9 @@ def localize_one(args, folders, progress: Progress) -> int:
     check_output(out, inputs=input_paths(args, folders))
     if args.viz is not None:
         check_viz(args.viz, [*input_paths(args, folders), out])
-    records, state, stop = [], {"viz": None}, None
+    records, state = [], {"viz": None}
     with StopSignals() as signals:
-        try:
-            _run_one(args, folders, progress, src, records, state)
-        except KeyboardInterrupt as e:
-            stop = e
+        stop = signals.run(lambda: _run_one(args, folders, progress, src, records, state))
         viz = state["viz"]
         with signals.writing():
             write_decisions(out, records)

@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from mfcl_jax.se2 import wrap_host
+
 __all__ = ["Splits"]
 
 
@@ -102,7 +104,7 @@ class Splits:
     @staticmethod
     def _jump(j: int, kf, times, raw, test: str) -> str:
         step = math.hypot(*(raw[j, :2] - raw[j - 1, :2]))
-        dyaw = (raw[j, 2] - raw[j - 1, 2] + math.pi) % (2 * math.pi) - math.pi
+        dyaw = float(wrap_host(raw[j, 2] - raw[j - 1, 2]))
         dt = times[j] - times[j - 1]
         what = (f"the input odometry moves {step:.2f} m and turns {math.degrees(abs(dyaw)):.0f} "
                 f"deg in {dt:.2f} s")  # fmt: skip

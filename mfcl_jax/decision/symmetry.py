@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mfcl_jax.se2 import wrap_host
+
 __all__ = ["QUARTER_TURNS", "rotational_motions", "motion_support"]
 
 QUARTER_TURNS = (90.0, 180.0, 270.0)
@@ -122,8 +124,7 @@ def rotational_motions(
     for gi in found:
         at = _apply(gi, centre)
         if all(
-            np.hypot(*(at - _apply(u, centre))) > dedupe
-            or abs(np.angle(np.exp(1j * (gi[2] - u[2])))) > angle_tol
+            np.hypot(*(at - _apply(u, centre))) > dedupe or abs(wrap_host(gi[2] - u[2])) > angle_tol
             for u in uniq
         ):
             uniq.append(gi)

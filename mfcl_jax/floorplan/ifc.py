@@ -35,11 +35,30 @@ _CACHE: dict = {}
 
 
 # ---------------------------------------------------------------------- file access
+def _check_complete(path: Path) -> None:
+    """An IFC text file (STEP, ISO 10303-21) ends with ``END-ISO-10303-21;``: one that does
+    not was cut short (an export or a copy interrupted), and what it holds is not the model."""
+    with path.open("rb") as f:
+        head = f.read(64)
+        if not head.lstrip().startswith(b"ISO-10303-21;"):
+            return  # not a STEP text file: ifcopenshell says what it is
+        f.seek(0, 2)
+        size = f.tell()
+        f.seek(max(size - 4096, 0))
+        tail = f.read()
+    if b"END-ISO-10303-21;" not in tail:
+        raise FloorplanError(
+            f"{path}: the IFC file is truncated: it does not end with END-ISO-10303-21; "
+            f"({size} bytes; the export or the copy was cut short); export the model again"
+        )
+
+
 def _open(path: Path):
     import ifcopenshell
 
     if not path.is_file():
         raise FloorplanError(f"{path}: file not found")
+    _check_complete(path)
     try:
         model = ifcopenshell.open(str(path))
     except Exception as e:  # ifcopenshell raises several unrelated types for a bad file

@@ -10,6 +10,8 @@ import math
 import numpy as np
 from shapely.geometry import MultiPolygon
 
+from mfcl_jax.se2 import wrap_host
+
 __all__ = ["rings", "boundary_segments", "wall_corners", "CORNER_SIMPLIFY", "MAX_CORNERS"]
 
 # Wall corners (``Floorplan.corners``): boundary simplification (m) and the most kept.
@@ -38,7 +40,7 @@ def wall_corners(solid) -> tuple[np.ndarray, np.ndarray]:
             if la < 1e-6 or lb < 1e-6:
                 continue
             ang_a, ang_b = math.atan2(da[1], da[0]), math.atan2(db[1], db[0])
-            between = abs((ang_a - ang_b + math.pi) % (2 * math.pi) - math.pi)
+            between = abs(float(wrap_host(ang_a - ang_b)))
             if between > math.radians(160):
                 continue
             pts.append(p)

@@ -28,6 +28,7 @@ import shapely
 
 from mfcl_jax import se2
 from mfcl_jax.frontend.materialize import materialize
+from mfcl_jax.se2 import wrap_host
 
 __all__ = ["compact", "subsample", "detect_lines", "detect_corners", "floorplan_corners"]
 
@@ -262,7 +263,7 @@ def floorplan_corners(fp, capacity: int | None = None, probe: float = 0.03):
     """
     pts, dirs = fp.corners
     a, b = dirs[:, 0], dirs[:, 1]
-    gap = np.angle(np.exp(1j * (b - a)))
+    gap = wrap_host(b - a)
     swap = gap < 0
     a1, a2 = np.where(swap, b, a), np.where(swap, a, b)
     bis = a1 + np.abs(gap) / 2

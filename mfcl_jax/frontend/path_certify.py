@@ -40,6 +40,7 @@ from mfcl_jax.frontend.path_bound import EPS, SQ2, BoundFields, cell_bounds, sol
 from mfcl_jax.frontend.path_fields import PlanFields
 from mfcl_jax.frontend.path_llr import LLRParams, PathEvidence
 from mfcl_jax.frontend.path_search import fft_size
+from mfcl_jax.se2 import wrap_host
 
 __all__ = ["BoundParams", "BoundResult", "certify"]
 
@@ -212,7 +213,7 @@ def certify(pe: PathEvidence, fields: PlanFields, bf: BoundFields, a_star, x_now
         px = np.cos(th) * (x_now[0] - c[0]) - np.sin(th) * (x_now[1] - c[1]) + cl[:, 0]
         py = np.sin(th) * (x_now[0] - c[0]) + np.cos(th) * (x_now[1] - c[1]) + cl[:, 1]
         dxy = np.hypot(px - star_now[0], py - star_now[1]) + SQ2 * h + r_now * delta
-        dth = np.abs(np.angle(np.exp(1j * (th - a_star[2])))) + delta
+        dth = np.abs(wrap_host(th - a_star[2])) + delta
         return (dxy <= p.near_xy) & (dth <= near_rad)
 
     def exact(cand):
@@ -223,7 +224,7 @@ def certify(pe: PathEvidence, fields: PlanFields, bf: BoundFields, a_star, x_now
         px = cand[:, 0] + cn * x_now[0] - sn * x_now[1]
         py = cand[:, 1] + sn * x_now[0] + cn * x_now[1]
         far = (np.hypot(px - star_now[0], py - star_now[1]) > p.near_xy) | (
-            np.abs(np.angle(np.exp(1j * (cand[:, 2] - a_star[2])))) > near_rad
+            np.abs(wrap_host(cand[:, 2] - a_star[2])) > near_rad
         )
         return np.where(far, L, -np.inf)
 

@@ -36,7 +36,7 @@ from mfcl_jax.io.pointcloud2 import pointcloud2_points
 from mfcl_jax.io.tf_static import planar_pose, sensor_poses, static_edges, transform_between
 from mfcl_jax.io.timesync import odometry_at
 from mfcl_jax.io.tum import unit_quaternions, yaw_from_quat
-from mfcl_jax.io.units import check_metres
+from mfcl_jax.io.units import check_metres, check_some_points
 
 __all__ = ["read_tf_static", "BagScans", "read_bag", "open_bag", "laserscan_points"]
 
@@ -225,6 +225,7 @@ def read_bag(
     finally:
         reader.close()
     o_t, o_p = odo.poses(f"{path} {odom_topic}")
+    check_some_points(scans, where)
     check_metres(scans, [f"{where} scan at t={t:.9f}" for t in s_t], str(path))
     mount = None
     if base_frame is not None:

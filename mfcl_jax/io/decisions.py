@@ -60,6 +60,10 @@ def _check(where: str, d: dict) -> dict:
     missing = [k for k in _KEYS if k not in d]
     if missing:
         raise DataError(f"{where}: missing keys {missing}")
+    if not isinstance(d["k"], int) or isinstance(d["k"], bool):
+        raise DataError(f"{where}: k={d['k']!r}, expected an integer (the window's index)")
+    if d["t"] is not None and not _number(d["t"]):
+        raise DataError(f"{where}: t={d['t']!r}, expected a finite time in seconds")
     if d["state"] not in STATES:
         raise DataError(f"{where}: state={d['state']!r}, expected one of {STATES}")
     if d["symmetry"] not in SYMMETRIES:
@@ -125,7 +129,7 @@ def read_decisions(path) -> list[dict]:
         text = path.read_text()
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
-    out = []
+    out, lines = [], []
     for no, line in enumerate(text.splitlines(), 1):
         if not line.strip():
             continue
@@ -136,4 +140,36 @@ def read_decisions(path) -> list[dict]:
         if not isinstance(d, dict):
             raise DataError(f"{path}:{no}: expected a JSON object")
         out.append(_check(f"{path}:{no}", d))
+        lines.append(no)
+    _check_order(path, out, lines)
     return out
+
+
+def _check_order(path, decisions: list[dict], lines: list[int]) -> None:
+    """The windows of a file in the order they were decided: ``k`` never repeats and grows
+    line by line, and ``t`` never goes back, within an odometry segment (``segment`` where the
+    file has it; a file without it starts a new segment wherever ``k`` does not grow)."""
+    seen: dict[tuple, int] = {}
+    last: dict = {}
+    segments = all("segment" in d for d in decisions)
+    seg = 0
+    for i, (d, no) in enumerate(zip(decisions, lines, strict=True)):
+        k, t = d["k"], d["t"]
+        if not segments and i and k <= decisions[i - 1]["k"]:
+            seg += 1
+        s = d["segment"] if segments else seg
+        key = (s, k) if not segments else (k,)  # k counts over the whole recording
+        if key in seen:
+            raise DataError(
+                f"{path}:{no}: k={k} repeats line {seen[key]}; a window is decided once"
+            )
+        seen[key] = no
+        if s in last:
+            pk, pt, pno = last[s]
+            if k < pk:
+                raise DataError(f"{path}:{no}: k={k} after k={pk} (line {pno}) in segment {s}; "
+                                "windows are written in the order they are decided")  # fmt: skip
+            if t is not None and pt is not None and t < pt:
+                raise DataError(f"{path}:{no}: t={t} goes back from t={pt} (line {pno}) within "
+                                f"odometry segment {s}")  # fmt: skip
+        last[s] = (k, t, no)

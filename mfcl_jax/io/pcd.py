@@ -189,7 +189,8 @@ def _binary(path, body, n, fields, dtypes, counts, idx) -> list[np.ndarray]:
             f"{path}: {n} points declared, binary data holds {len(body) // dt.itemsize}{extra}"
         )
     rec = np.frombuffer(body, dtype=dt, count=n)
-    return [rec[dt.names[i]].reshape(n, -1)[:, 0].astype(float) for i in idx]
+    return [rec[dt.names[i]].reshape(n, -1)[:, 0].astype(float) if n else np.zeros(0)
+            for i in idx]  # fmt: skip
 
 
 def _compressed(path, body, n, dtypes, counts, idx) -> list[np.ndarray]:

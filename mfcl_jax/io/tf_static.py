@@ -18,6 +18,7 @@ import numpy as np
 
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.tum import unit_quaternions
+from mfcl_jax.se2 import wrap_host
 
 __all__ = [
     "matrix_from_quaternion",
@@ -132,7 +133,7 @@ def sensor_poses(base_poses, mounting) -> np.ndarray:
         [
             p[:, 0] + c * ox - s * oy,
             p[:, 1] + s * ox + c * oy,
-            np.arctan2(np.sin(yaw), np.cos(yaw)),
+            wrap_host(yaw),
         ],
         -1,
     )

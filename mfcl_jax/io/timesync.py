@@ -28,16 +28,11 @@ import warnings
 import numpy as np
 
 from mfcl_jax.io.errors import DataError, DataWarning
+from mfcl_jax.se2 import wrap_host
 
-__all__ = ["TIME_TOL_S", "wrap_angle", "interpolate_se2", "odometry_at", "poses_at"]
+__all__ = ["TIME_TOL_S", "interpolate_se2", "odometry_at", "poses_at"]
 
 TIME_TOL_S = 1e-3
-
-
-def wrap_angle(a) -> np.ndarray:
-    """Angles (rad, any shape) wrapped to ``[-pi, pi]``."""
-    a = np.asarray(a, np.float64)
-    return np.arctan2(np.sin(a), np.cos(a))
 
 
 def interpolate_se2(times, poses, t) -> np.ndarray:
@@ -62,7 +57,7 @@ def interpolate_se2(times, poses, t) -> np.ndarray:
     # (1 - w) a + w b returns a and b exactly at w = 0 and 1: an odometry line at the scan's
     # stamp gives its own pose.
     xy = (1.0 - w)[:, None] * a[:, :2] + w[:, None] * b[:, :2]
-    yaw = wrap_angle(a[:, 2] + w * wrap_angle(b[:, 2] - a[:, 2]))
+    yaw = wrap_host(a[:, 2] + w * wrap_host(b[:, 2] - a[:, 2]))
     return np.concatenate([xy, yaw[:, None]], 1)
 
 

@@ -31,6 +31,7 @@ __all__ = [
     "MIN_PLAN_RATIO",
     "median_ranges",
     "check_metres",
+    "check_some_points",
     "check_plan_scale",
 ]
 
@@ -64,6 +65,17 @@ def median_ranges(scans, limit: int = N_FIRST) -> tuple[np.ndarray, np.ndarray]:
             if len(idx) == limit:
                 break
     return np.asarray(idx, int), np.asarray(med, np.float64)
+
+
+def check_some_points(scans, where: str) -> None:
+    """Refuses a recording whose every scan is empty (no finite point): nothing could ever be
+    registered, so no window could be decided (``DataError`` saying so)."""
+    if len(scans) and not len(median_ranges(scans, limit=1)[0]):
+        raise DataError(
+            f"{where}: every one of its {len(scans)} scans is empty (0 finite points): the "
+            "LiDAR saw nothing, or its points were dropped on the way (a wrong topic, field or "
+            "range filter); nothing can be localized without points"
+        )
 
 
 def check_metres(scans, names, where: str) -> float:

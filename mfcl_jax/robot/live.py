@@ -15,7 +15,8 @@ odometry lines are checked as ``read_tum`` checks a file (a bad complete line is
 naming its line number).
 
 The run ends when nothing new has arrived for ``idle_timeout`` seconds (or on Ctrl-C, which
-the caller handles); ``Follower.pending`` then says what was still waiting.
+the caller handles); ``Follower.pending`` then says what was still waiting. A scan that does
+not read then, with later scans waiting behind it, is an error (``DataError``).
 
 3-D clouds are cut as they arrive (``sources.planar.PlanarStream``: the floor is the median of
 those seen so far). Windows are decided as they complete by the localizer's one jitted step,
@@ -37,6 +38,7 @@ from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import pcd_fields, read_pcd
 from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2
 from mfcl_jax.io.tum import parse_tum
+from mfcl_jax.robot.signals import checkpoint
 from mfcl_jax.sources.planar import PlanarParams, PlanarStream
 from mfcl_jax.sources.sequence import ScanSequence
 
@@ -233,6 +235,16 @@ class Follower:
             grew = True
         return grew
 
+    def _check_blocked(self) -> None:
+        """At the idle stop: a scan that still does not read, with later scans waiting behind
+        it, is not a write in progress (nothing changed for ``idle_timeout`` s): an error."""
+        if len(self._queue) > 1 and self._queue[0][1] in self._failed:
+            path = self._queue[0][1]
+            raise DataError(
+                f"{self._failed[path][3]} (nothing new for {self.idle_timeout:g} s while "
+                f"{len(self._queue) - 1} later scans waited behind it)"
+            )
+
     def sequence(self) -> ScanSequence | None:
         """The scans that joined so far with their odometry (``None`` before the first)."""
         n = self.n_scans
@@ -248,6 +260,7 @@ class Follower:
         without new odometry or scans."""
         last = self._clock()
         while True:
+            checkpoint()  # a stop whose exception was lost is raised here
             before = self.n_scans
             new_lines = self._read_odometry()
             new_files = self._list_scans()
@@ -257,6 +270,7 @@ class Follower:
             if self.n_scans > before:
                 yield self.sequence()
             elif self._clock() - last >= self.idle_timeout:
+                self._check_blocked()
                 return
             else:
                 self._sleep(self.poll)

@@ -14,6 +14,8 @@ import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 
+from mfcl_jax.robot.signals import checkpoint
+
 __all__ = ["Progress", "COMPILING", "NOTE_EVERY_S"]
 
 COMPILING = "compiling (first run only; cached afterwards)"
@@ -47,9 +49,13 @@ class Progress:
 
     @contextmanager
     def stage(self, text: str):
-        """A stage of work: a spinner (terminal) or a start line, then its duration."""
+        """A stage of work: a spinner (terminal) or a start line, then its duration. A stop
+        signal whose exception was lost is raised as the stage starts or ends
+        (``signals.checkpoint``)."""
+        checkpoint()
         if not self.enabled:
             yield
+            checkpoint()
             return
         t0 = time.monotonic()
         stop = threading.Event()
@@ -70,6 +76,7 @@ class Progress:
         ok = False
         try:
             yield
+            checkpoint()
             ok = True
         finally:
             stop.set()
@@ -93,12 +100,14 @@ class Progress:
                 yield head
                 bar.update(1)
                 for item in it:
+                    checkpoint()
                     yield item
                     bar.update(1)
             return
         last, of = time.monotonic(), "" if total is None else f" of {total}"
         yield head
         for i, item in enumerate(it, 2):
+            checkpoint()
             yield item
             if time.monotonic() - last >= NOTE_EVERY_S:
                 self.note(f"window {i}{of}")

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+from mfcl_jax.se2 import wrap_host
+
 __all__ = [
     "STATE_TEXT",
     "REASON_TEXT",
@@ -226,7 +228,7 @@ def robot_pose(anchor, X) -> tuple[float, float, float]:
     x, y, yaw = (float(v) for v in X)
     c, s = math.cos(ayaw), math.sin(ayaw)
     t = ayaw + yaw
-    return ax + c * x - s * y, ay + s * x + c * y, math.atan2(math.sin(t), math.cos(t))
+    return ax + c * x - s * y, ay + s * x + c * y, float(wrap_host(t))
 
 
 def record(
@@ -262,7 +264,7 @@ def record(
         ayaw = pyaw - yawi
         c, s = math.cos(ayaw), math.sin(ayaw)
         a = dict(a, x=px - (c * xi - s * yi), y=py - (s * xi + c * yi),
-                 yaw_deg=math.degrees(math.atan2(math.sin(ayaw), math.cos(ayaw))))  # fmt: skip
+                 yaw_deg=math.degrees(wrap_host(ayaw)))  # fmt: skip
     # Large plan coordinates: add the offset last, in float64, so millimetres survive.
     d["anchor"] = dict(a, x=float(a["x"]) + ox, y=float(a["y"]) + oy)
     d["pose"] = {"x": float(px) + ox, "y": float(py) + oy, "yaw_deg": math.degrees(pyaw)}

@@ -40,6 +40,7 @@ import numpy as np
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.tf_static import sensor_poses
 from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2
+from mfcl_jax.robot.signals import checkpoint
 from mfcl_jax.ros2 import dds
 from mfcl_jax.sources.planar import PlanarParams, PlanarStream
 from mfcl_jax.sources.sequence import ScanSequence
@@ -340,6 +341,7 @@ class TopicFeed:
         """The current segment's scans, each time they grew; returns when both streams have
         jumped back in time (then ``next_segment``)."""
         while True:
+            checkpoint()  # a stop whose exception was lost is raised here
             grew, jumped = self.step()
             if grew:
                 yield self.sequence()

@@ -50,8 +50,8 @@ def node_params(args):
 def run_node(args, progress) -> int:
     """``mfcl ros2``: runs until SIGINT / SIGTERM; exit 130 / 143 after writing the outputs."""
     from mfcl_jax.cli.common import check_viz, localize_params, start, verdict, viz_add
-    from mfcl_jax.cli.signals import StopSignals, stop_name, stop_status
     from mfcl_jax.io import check_output, write_decisions
+    from mfcl_jax.robot.signals import StopSignals, stop_name, stop_status
 
     params = node_params(args)
     inputs = [args.floorplan]
@@ -180,18 +180,17 @@ def _play_bag(args) -> int:
 
 def _play(args, player, what: str, go) -> int:
     """Waits for readers, runs ``go()`` until it ends or a signal stops it (130 / 143)."""
-    from mfcl_jax.cli.signals import StopSignals, stop_status
+    from mfcl_jax.robot.signals import StopSignals, stop_status
     from mfcl_jax.ros2.dds import domain_id
 
     if not player.wait_for_readers(args.wait):
         _err(f"mfcl: no reader of {args.scan_topic} and {args.odom_topic} after {args.wait:g} s; "
              "playing anyway")  # fmt: skip
     _err(f"mfcl: ROS 2 domain {domain_id()}: playing {what} at {args.rate:g}x")
-    with StopSignals():
-        try:
-            go()
-        except KeyboardInterrupt as e:
-            _err(f"mfcl: stopped after {player.sent} messages")
-            return stop_status(e)
+    with StopSignals() as signals:
+        stop = signals.run(go)
+    if stop is not None:
+        _err(f"mfcl: stopped after {player.sent} messages")
+        return stop_status(stop)
     _err(f"mfcl: {player.sent} messages published")
     return 0

@@ -56,13 +56,14 @@ def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
     )
     exact = np.abs(times[j] - t) < 1e-3
     out[exact] = poses[j[exact]]
-    out[:, 2] = np.arctan2(np.sin(out[:, 2]), np.cos(out[:, 2]))
+    out[:, 2] = se2.wrap_host(out[:, 2])
     return out
 
 
 def decisions_frame(decisions) -> pd.DataFrame:
     """A decisions JSON-lines log (``io.read_decisions``) as a table in time order: ``k, t,
-    segment, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none).
+    segment, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none) and
+    ``pose_x, pose_y, pose_yaw_deg`` (the robot's pose the line gives; NaN when none).
 
     Rows are ordered by ``t`` (lines with equal times keep the file's order), never by ``k``:
     a file written before ``k`` counted over the whole recording starts ``k`` again at 1
@@ -72,6 +73,7 @@ def decisions_frame(decisions) -> pd.DataFrame:
     rows = []
     for d in decisions:
         a = d["anchor"] or {}
+        pose = d.get("pose") or {}
         rows.append(
             dict(
                 k=int(d["k"]),
@@ -85,9 +87,13 @@ def decisions_frame(decisions) -> pd.DataFrame:
                 x=a.get("x", math.nan),
                 y=a.get("y", math.nan),
                 yaw_deg=a.get("yaw_deg", math.nan),
+                pose_x=pose.get("x", math.nan),
+                pose_y=pose.get("y", math.nan),
+                pose_yaw_deg=pose.get("yaw_deg", math.nan),
             )
         )
-    cols = ["k", "t", "segment", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg"]
+    cols = ["k", "t", "segment", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg",
+            "pose_x", "pose_y", "pose_yaw_deg"]  # fmt: skip
     df = pd.DataFrame(rows, columns=cols)
     if df.empty:
         return df.astype({"segment": np.int64})
@@ -105,7 +111,7 @@ def _errors(df, cols, X, Y):
     has = np.all(np.isfinite(A), 1)
     placed = se2.compose_host(np.where(has[:, None], A, 0.0), X)
     dxy = np.hypot(placed[:, 0] - Y[:, 0], placed[:, 1] - Y[:, 1])
-    dth = np.abs(np.angle(np.exp(1j * (placed[:, 2] - Y[:, 2]))))
+    dth = np.abs(se2.wrap_host(placed[:, 2] - Y[:, 2]))
     return has, placed, dxy, dth
 
 
@@ -134,6 +140,14 @@ def score_rows(
     X = pose_at(odom_times, odom, t, f"{where} (odometry)")
     Y = pose_at(gt_times, gt, t, f"{where} (ground truth)")
     has, placed, dxy, dth = _errors(df, ("x", "y", "yaw_deg"), X, Y)
+    if "pose_x" in df:
+        # the pose a robot reads is judged too (the worse of the two errors is reported)
+        P = df[["pose_x", "pose_y", "pose_yaw_deg"]].to_numpy(np.float64, copy=True)
+        has_pose = np.all(np.isfinite(P), 1)
+        p_xy = np.hypot(P[:, 0] - Y[:, 0], P[:, 1] - Y[:, 1])
+        p_th = np.abs(se2.wrap_host(np.deg2rad(P[:, 2]) - Y[:, 2]))
+        dxy = np.where(has_pose, np.fmax(dxy, p_xy), dxy)
+        dth = np.where(has_pose, np.fmax(dth, p_th), dth)
     df["err_xy"] = np.where(has, dxy, np.nan)
     df["err_yaw_deg"] = np.where(has, np.degrees(dth), np.nan)
     df["correct"] = has & (df["err_xy"] < CORRECT_XY) & (df["err_yaw_deg"] < CORRECT_YAW_DEG)

@@ -48,6 +48,7 @@ import numpy as np
 from mfcl_jax.frontend import path_search as ps
 from mfcl_jax.score.decisions import pose_at
 from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
+from mfcl_jax.se2 import wrap_host
 
 __all__ = ["LabelParams", "RunLabel", "label_runs"]
 
@@ -137,7 +138,7 @@ def _dedupe(G, xy: float = 0.3, deg: float = 2.0):
             keep.append(g)
             continue
         k = np.asarray(keep)
-        dth = np.abs(np.angle(np.exp(1j * (g[2] - k[:, 2]))))
+        dth = np.abs(wrap_host(g[2] - k[:, 2]))
         if np.all((np.hypot(*(g[:2] - k[:, :2]).T) > xy) | (dth > np.deg2rad(deg))):
             keep.append(g)
     return np.asarray(keep, np.float64)
@@ -227,7 +228,7 @@ def label_runs(recordings, windows, fields_of, p: LabelParams = LabelParams(), s
         my = sa * P[None, :, 0] + ca * P[None, :, 1] + G[1:, 1:2]
         dxy = np.hypot(mx - P[None, :, 0], my - P[None, :, 1])
         far = np.maximum.accumulate(dxy, axis=1) > CORRECT_XY
-        turned = np.abs(np.angle(np.exp(1j * G[1:, 2])))[:, None] > np.deg2rad(CORRECT_YAW_DEG)
+        turned = np.abs(wrap_host(G[1:, 2]))[:, None] > np.deg2rad(CORRECT_YAW_DEG)
         alt = (far | turned) & ~contradicted  # (A, S): a live alternative after scan s
         ident = ~np.any(alt[:, ends], axis=0)  # (K,)
         later = np.minimum.accumulate(ident[::-1])[::-1]

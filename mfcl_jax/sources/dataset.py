@@ -31,7 +31,7 @@ from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import read_pcd, write_pcd
 from mfcl_jax.io.timesync import odometry_at, poses_at
 from mfcl_jax.io.tum import format_time, read_tum, write_tum
-from mfcl_jax.io.units import check_metres, check_plan_scale
+from mfcl_jax.io.units import check_metres, check_plan_scale, check_some_points
 
 __all__ = ["Dataset", "load_dataset", "write_dataset"]
 
@@ -132,6 +132,7 @@ def load_dataset(
         pts, nd = read_pcd(files[i], return_dropped=True, xyz=xyz)
         scans.append(pts)
         dropped.append(nd)
+    check_some_points(scans, str(folder))
     median_range = check_metres(scans, [str(files[i]) for i in keep], str(folder))
     check_plan_scale(fp.bounds, median_range, plan_name, str(folder / "scans"))
     gt = None
@@ -229,6 +230,8 @@ def write_dataset(
         )
     if folder.exists() and not overwrite:
         raise DataError(f"{folder}: already exists (pass overwrite=True to replace it)")
+    if folder.exists():
+        _check_replaceable(folder)
     check_output(folder, folder=True)
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
@@ -267,6 +270,28 @@ def write_dataset(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return folder
+
+
+def _check_replaceable(folder: Path) -> None:
+    """Only a dataset folder is replaced: a folder holding ``odometry.tum`` or ``scans/`` and
+    nothing but a dataset's files (``DataError`` naming what else it holds)."""
+    if not folder.is_dir():
+        raise DataError(
+            f"{folder}: exists and is not a folder; overwrite replaces a dataset folder"
+        )
+    names = {p.name for p in folder.iterdir()}
+    if not names & {"odometry.tum", "scans"}:
+        raise DataError(
+            f"{folder}: overwrite replaces a dataset folder, and this one holds no odometry.tum "
+            f"and no scans/ ({len(names)} entries, e.g. {sorted(names)[:3]}); it was left as it is"
+        )
+    known = {"odometry.tum", "groundtruth.tum", "scans", *FLOORPLAN_NAMES}
+    other = sorted(n for n in names - known if not n.startswith("floorplan."))
+    if other:
+        raise DataError(
+            f"{folder}: overwrite replaces a dataset folder, and this one also holds {other[:3]}"
+            f"{' ...' if len(other) > 3 else ''}, which a dataset does not; it was left as it is"
+        )
 
 
 def _copy_floorplan(src: Path, dst_dir: Path) -> None:

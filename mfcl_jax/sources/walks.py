@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import shapely
 from shapely.geometry import LineString, Point
 
 from mfcl_jax.io.errors import DataError
@@ -61,7 +62,19 @@ def read_waypoints(path) -> np.ndarray:
 
 
 def check_waypoints(fp, wp, where: str = "<waypoints>") -> None:
-    """Raises ``DataError`` when a waypoint lies in a wall or a leg crosses one."""
+    """Raises ``DataError`` when a waypoint lies outside the building (its footprint), in a
+    wall, or a leg crosses one."""
+    inside = shapely.contains_xy(fp.footprint, wp[:, 0], wp[:, 1])
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        ox, oy = (float(v) for v in fp.offset)  # the message speaks the file's frame
+        x0, y0, x1, y1 = np.asarray(fp.bounds) + (ox, oy, ox, oy)
+        raise DataError(
+            f"{where}: waypoint {i + 1} ({wp[i][0] + ox:.2f}, {wp[i][1] + oy:.2f}) lies outside "
+            f"the building {fp.name} (its footprint spans x {x0:.2f}..{x1:.2f}, y {y0:.2f}.."
+            f"{y1:.2f}; {int((~inside).sum())} of {len(wp)} waypoints outside); the LiDAR "
+            "would see the outer walls from outside"
+        )
     solid = fp.wall_solid
     for i in range(len(wp) - 1):
         leg = LineString(wp[i : i + 2])

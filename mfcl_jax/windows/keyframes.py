@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mfcl_jax.se2 import wrap_host
+
 __all__ = [
     "keyframes",
     "travelled",
@@ -42,7 +44,7 @@ def extend_keyframes(x, keep: list, start: int, spacing: float, turn_deg: float)
         start = 1
     for i in range(max(start, 1), len(x)):
         a = x[keep[-1]]
-        dyaw = abs((x[i, 2] - a[2] + np.pi) % (2 * np.pi) - np.pi)
+        dyaw = abs(wrap_host(x[i, 2] - a[2]))
         if np.hypot(*(x[i, :2] - a[:2])) >= spacing or dyaw >= turn:
             keep.append(i)
     return keep
@@ -82,7 +84,7 @@ def odometry_segments(poses, times) -> np.ndarray:
     dt = np.abs(np.diff(t))
     dt = np.where(np.isfinite(dt), dt, 0.0)
     step = np.hypot(*np.diff(x[:, :2], axis=0).T)
-    turn = np.rad2deg(np.abs((np.diff(x[:, 2]) + np.pi) % (2 * np.pi) - np.pi))
+    turn = np.rad2deg(np.abs(wrap_host(np.diff(x[:, 2]))))
     jump = (step > JUMP_M + JUMP_SPEED * dt) | (turn > JUMP_DEG + JUMP_RATE * dt)
     return np.concatenate([[0], np.cumsum(jump)]).astype(np.int64)
 

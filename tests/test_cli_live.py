@@ -174,9 +174,13 @@ def test_an_unreadable_scan_is_retried_then_named(tmp_path):
     with pytest.raises(DataError, match=r"1\.pcd: binary data truncated .*\(unchanged for 5 s"):
         next(seqs)
     assert clock.now - t0 >= 5.0
-    scans[1].write_bytes(b"")  # empty, as a recorder leaves it: retried until idle
-    g = Follower(ds, idle_timeout=2.0, clock=clock, sleep=clock.sleep)
-    assert [len(s) for s in g.prefixes()] == [1]
+    scans[1].write_bytes(b"")  # empty, as a recorder leaves it: retried until idle, then
+    g = Follower(ds, idle_timeout=2.0, clock=clock, sleep=clock.sleep)  # named (issue 52)
+    got = []
+    with pytest.raises(DataError, match=r"1\.pcd: .*\(nothing new for 2 s while 1 later scans"):
+        for seq in g.prefixes():
+            got.append(len(seq))
+    assert got == [1]
     assert "first " in g.pending()[0] and "1.pcd (unreadable" in g.pending()[0]
     scans[1].write_bytes(whole)
     assert [len(s) for s in g.prefixes()] == [3] and g.pending() == []

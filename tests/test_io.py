@@ -186,7 +186,7 @@ def test_load_floorplan_dispatch_errors(tmp_path):
         load_floorplan(tmp_path / "plan.dxf")
     with pytest.raises(FloorplanError, match="file not found"):
         load_floorplan(tmp_path / "nope.ifc")
-    (tmp_path / "broken.ifc").write_text("ISO-10303-21;\nthis is not IFC\n")
+    (tmp_path / "broken.ifc").write_text("ISO-10303-21;\nthis is not IFC\nEND-ISO-10303-21;\n")
     with pytest.raises(FloorplanError, match=r"broken\.ifc: not a readable IFC file"):
         load_floorplan(tmp_path / "broken.ifc")
 

@@ -146,9 +146,9 @@ def read_decisions(path) -> list[dict]:
 
 
 def _check_order(path, decisions: list[dict], lines: list[int]) -> None:
-    """The windows of a file in the order they were decided: ``k`` never repeats and grows
-    line by line, and ``t`` never goes back, within an odometry segment (``segment`` where the
-    file has it; a file without it starts a new segment wherever ``k`` does not grow)."""
+    """The windows of a file in the order they were decided: within an odometry segment
+    (``segment`` where the file has it; a file without it starts a new segment wherever ``k``
+    does not grow), ``k`` never repeats and grows line by line, and ``t`` never goes back."""
     seen: dict[tuple, int] = {}
     last: dict = {}
     segments = all("segment" in d for d in decisions)
@@ -158,7 +158,7 @@ def _check_order(path, decisions: list[dict], lines: list[int]) -> None:
         if not segments and i and k <= decisions[i - 1]["k"]:
             seg += 1
         s = d["segment"] if segments else seg
-        key = (s, k) if not segments else (k,)  # k counts over the whole recording
+        key = (s, k)
         if key in seen:
             raise DataError(
                 f"{path}:{no}: k={k} repeats line {seen[key]}; a window is decided once"

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import math
 
-from mfcl_jax.se2 import wrap_host
-
 __all__ = [
     "STATE_TEXT",
     "REASON_TEXT",
@@ -228,6 +226,8 @@ def robot_pose(anchor, X) -> tuple[float, float, float]:
     x, y, yaw = (float(v) for v in X)
     c, s = math.cos(ayaw), math.sin(ayaw)
     t = ayaw + yaw
+    from mfcl_jax.se2 import wrap_host  # here: the status line's module stays free of JAX
+
     return ax + c * x - s * y, ay + s * x + c * y, float(wrap_host(t))
 
 
@@ -259,12 +259,14 @@ def record(
     yaw = math.radians(a["yaw_deg"])
     px, py, pyaw = robot_pose((a["x"], a["y"], yaw), X)
     if X_input is not None:
+        from mfcl_jax.se2 import wrap_host  # here: the status line's module stays free of JAX
+
         # (T* X_k) X_input^-1: the pose written, reached from the input odometry.
         xi, yi, yawi = (float(v) for v in X_input)
         ayaw = pyaw - yawi
         c, s = math.cos(ayaw), math.sin(ayaw)
         a = dict(a, x=px - (c * xi - s * yi), y=py - (s * xi + c * yi),
-                 yaw_deg=math.degrees(wrap_host(ayaw)))  # fmt: skip
+                 yaw_deg=math.degrees(float(wrap_host(ayaw))))  # fmt: skip
     # Large plan coordinates: add the offset last, in float64, so millimetres survive.
     d["anchor"] = dict(a, x=float(a["x"]) + ox, y=float(a["y"]) + oy)
     d["pose"] = {"x": float(px) + ox, "y": float(py) + oy, "yaw_deg": math.degrees(pyaw)}

@@ -13,8 +13,9 @@ import time
 from benchmarks._versions_compare import compare_states, compare_tables, count_lines
 from benchmarks._versions_report import write_rows
 from benchmarks._versions_sides import ROOT, SIDES, load, log, side_env, timed
+from mfcl_jax.sources.data import data_dir
 
-OFFICE_IFC = ROOT.parent / "shared" / "data" / "ifc" / "Office_A_20110811.ifc"
+OFFICE_IFC = data_dir() / "ifc" / "Office_A_20110811.ifc"
 WAYPOINTS = (
     "x,y\n6,-27\n6.9,-15.1\n6.9,-13.5\n25.2,-13.5\n25.2,-15.1\n25.4,-29.3\n25.4,-30.9\n"
     "20.3,-30.8\n27.7,-30.8\n27.7,-29.2\n33.8,-29.4\n"

@@ -31,10 +31,12 @@ def _datasets(n: int, work: Path) -> Path:
     from mfcl_jax.bench.config import BenchmarkConfig
     from mfcl_jax.bench.suite import nominal_recordings
     from mfcl_jax.score import pose_at
-    from mfcl_jax.sources.dataset import write_dataset
+    from mfcl_jax.sources.dataset_write import write_dataset
 
     out = work / "datasets"
-    have = sorted(p for p in out.glob("*") if (p / "odometry.tum").is_file()) if out.is_dir() else []
+    have = (
+        sorted(p for p in out.glob("*") if (p / "odometry.tum").is_file()) if out.is_dir() else []
+    )
     if len(have) >= n:
         for extra in have[n:]:
             shutil.rmtree(extra)

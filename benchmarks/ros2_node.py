@@ -46,11 +46,13 @@ import time
 import numpy as np
 import pandas as pd
 
+from mfcl_jax.sources.data import data_dir
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 from benchmarks._versions_cases import OFFICE_IFC, WAYPOINTS  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-BAG = ROOT.parent / "shared" / "data" / "laser" / "intel.orig.bag"
+BAG = data_dir() / "laser" / "intel.orig.bag"
 MFCL = [sys.executable, "-c", "import sys; from mfcl_jax.cli import main; sys.exit(main())"]
 LOOPBACK = (
     '<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces>'

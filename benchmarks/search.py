@@ -39,9 +39,11 @@ import subprocess
 import sys
 import tempfile
 
+from mfcl_jax.sources.data import data_dir
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "results"
-DATA = ROOT.parent / "shared" / "data"
+DATA = data_dir()
 BUILDINGS = ("three_rooms", "office_a", "willow")
 
 # Run inside each side's tree: only APIs both sides share (rivals.search, path_llr,

@@ -10,7 +10,7 @@ import pytest
 from mfcl_jax.cli import main
 from mfcl_jax.floorplan import save_geojson
 from mfcl_jax.io import read_decisions, read_tum
-from mfcl_jax.robot.status import robot_pose
+from mfcl_jax.robot.records import robot_pose
 from mfcl_jax.sim.scenes import symmetric_bays
 
 # R1 -> door line -> R4 of the symmetric bays (the plan of the other ``mfcl localize`` tests,

@@ -16,8 +16,9 @@ from shapely.geometry import box
 
 from mfcl_jax.cli import main
 from mfcl_jax.floorplan import Door, Floorplan, FloorplanWarning, Room, load_floorplan, save_geojson
+from mfcl_jax.sources.data import data_dir
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_dir()
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -36,19 +36,21 @@ def _snapshot(folder):
 def test_a_folder_of_datasets_in_one_batch(folder, tmp_path, capsys, monkeypatch):
     """Three datasets in chunks of at most two: chunks of 2 and 1, the second padded to the
     first, so one compiled program decides both; ``zeast`` (a copy of ``east``, alone in the
-    padded chunk) decides as ``east`` does."""
+    padded chunk) decides as ``east`` does. Within a memory budget the first chunk passes,
+    the rest is decided one recording at a time, to the same decisions."""
     from mfcl_jax.decision.runs import TRACES
-    from mfcl_jax.robot import many
+    from mfcl_jax.drive import batch as driver
 
     data, out = tmp_path / "data", tmp_path / "out"
     for name in WALKS:
         shutil.copytree(folder / name, data / name)
     shutil.copytree(folder / "east", data / "zeast")
-    monkeypatch.setattr(many, "CHUNK", 2)
+    monkeypatch.setattr(driver, "CHUNK", 2)
     before = TRACES["scan_runs"]
     assert main(["localize", str(data), "--out-dir", str(out)]) == 0
     assert TRACES["scan_runs"] - before <= 1
-    text = capsys.readouterr().out
+    cap = capsys.readouterr()
+    text = cap.out
     names = ["east", "west", "zeast"]
     assert sorted(p.name for p in out.iterdir()) == [f"{n}.jsonl" for n in names]
     table = text[text.index("dataset  windows") :].splitlines()
@@ -60,6 +62,18 @@ def test_a_folder_of_datasets_in_one_batch(folder, tmp_path, capsys, monkeypatch
         assert line.split() == [name, str(len(d)), str(first), d[-1]["state"]]
         assert f"{data / name}: " in text and all("pose" in x and "reason" in x for x in d)
     assert decs["zeast"] == decs["east"]
+    assert "memory: " in cap.err and "at the peak, budget" in cap.err  # reported
+    # a budget the first chunk passes: the chunks after it are halved (one recording each),
+    # the decisions are the same, and it says so
+    again = tmp_path / "again"
+    assert main(["localize", str(data), "--out-dir", str(again), "--max-memory", "1M",
+                 "--quiet", "--progress"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "above the budget of 0.00 GiB: 1 recordings per chunk from now on" in err
+    assert "(2 chunks; 2 chunks above it)" in err
+    assert {n: read_decisions(again / f"{n}.jsonl") for n in names} == decs
+    assert main(["localize", str(data), "--out-dir", str(again), "--max-memory", "lots"]) == 2
+    assert "--max-memory: 'lots' is not a memory size; give e.g. 6G" in capsys.readouterr().err
     # (that the batch decides as a robot does, one window at a time, is
     # tests/test_rivals.py::test_robot_and_batch_search_at_the_same_windows_and_agree)
 

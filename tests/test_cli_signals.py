@@ -6,7 +6,7 @@ every bad one at once, and with ``--keep-going`` decides the good ones and exits
 The signal cases start ``mfcl localize`` as a process, wait for its first status line and
 signal it. A one-dataset run on this small walk would finish before a signal lands, so its
 robot is made slow (half a second more per window). The batch stop and the refusals stub the
-batch (``localize_batch``): they need the datasets read, not decided."""
+batch (``drive.batch.decide_batch``): they need the datasets read, not decided."""
 
 from __future__ import annotations
 
@@ -169,13 +169,13 @@ def test_stop_signals_raise_once_and_never_while_writing():
 
 # ------------------------------------------------------------------ batches
 def _fake_batch(stop_after=None):
-    """A stand-in for ``localize_batch``: one DEFER window per recording; sends SIGTERM to
+    """A stand-in for ``decide_batch``: one DEFER window per recording; sends SIGTERM to
     this process after ``stop_after`` recordings."""
-    from mfcl_jax.robot.many import BatchResult
+    from mfcl_jax.drive.batch import BatchResult
 
     calls = []
 
-    def batch(fps, seqs, params=None, progress=None, chunk=8):
+    def batch(fps, seqs, params=None, progress=None, budget=None, chunk=8, report=None):
         calls.append(len(seqs))
         for i, seq in enumerate(seqs):
             d = {"k": 1, "segment": 0, "t": float(seq.times[-1]), "state": "DEFER",
@@ -191,13 +191,13 @@ def _fake_batch(stop_after=None):
 
 def test_sigterm_stops_a_batch_and_writes_the_datasets_decided(walk, tmp_path, monkeypatch,
                                                                capsys):  # fmt: skip
-    from mfcl_jax.robot import many
+    from mfcl_jax.drive import batch as driver
 
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(walk, a)
     shutil.copytree(walk, b)
     batch, _ = _fake_batch(stop_after=1)
-    monkeypatch.setattr(many, "localize_batch", batch)
+    monkeypatch.setattr(driver, "decide_batch", batch)
     out = tmp_path / "out"
     assert main(["localize", str(a), str(b), "--out-dir", str(out)]) == 143
     cap = capsys.readouterr()
@@ -208,7 +208,7 @@ def test_sigterm_stops_a_batch_and_writes_the_datasets_decided(walk, tmp_path, m
 
 
 def test_a_batch_names_every_bad_dataset_before_any_work(walk, tmp_path, monkeypatch, capsys):
-    from mfcl_jax.robot import many
+    from mfcl_jax.drive import batch as driver
 
     good, broken, empty = tmp_path / "good", tmp_path / "broken", tmp_path / "empty"
     shutil.copytree(walk, good)
@@ -217,7 +217,7 @@ def test_a_batch_names_every_bad_dataset_before_any_work(walk, tmp_path, monkeyp
     empty.mkdir()
     missing = tmp_path / "missing"
     batch, calls = _fake_batch()
-    monkeypatch.setattr(many, "localize_batch", batch)
+    monkeypatch.setattr(driver, "decide_batch", batch)
     before = _snapshot(tmp_path)
     out = tmp_path / "out"
     argv = ["localize", str(good), str(broken), str(empty), str(missing), "--out-dir", str(out)]
@@ -262,8 +262,8 @@ def test_keep_going_decides_the_good_datasets_and_exits_2(walk, tmp_path, capsys
 def test_keep_going_past_a_dataset_the_batch_cannot_decide(walk, tmp_path, monkeypatch, capsys):
     """A dataset that reads but that the batch refuses (a window over the capacity, say)
     stops the batch; with ``--keep-going`` the datasets left are decided one by one."""
+    from mfcl_jax.drive import batch as driver
     from mfcl_jax.io import DataError
-    from mfcl_jax.robot import many
 
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(walk, a)
@@ -276,7 +276,7 @@ def test_keep_going_past_a_dataset_the_batch_cannot_decide(walk, tmp_path, monke
             raise DataError(f"{seqs[-1].source}: a window over the capacity")
         yield from fake(fps, seqs, *args, **kw)
 
-    monkeypatch.setattr(many, "localize_batch", batch)
+    monkeypatch.setattr(driver, "decide_batch", batch)
     out = tmp_path / "out"
     argv = ["localize", str(a), str(b), "--out-dir", str(out)]
     assert main(argv) == 2 and not out.exists()  # without --keep-going: an error, no output

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from mfcl_jax.cli import build_parser, main
 from mfcl_jax.io import DataError, read_decisions, write_decisions
 from mfcl_jax.io.decisions import decision_line
-from mfcl_jax.robot import status
+from mfcl_jax.robot import records, status
 from mfcl_jax.robot.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,7 +61,7 @@ def test_status_lines_read_as_the_examples():
     defer = dict(OLD, k=1, t=12.0, reason="unsaturated", pose=None)
     amb = dict(OLD, k=3, t=20.0, state="AMBIGUOUS", symmetry="translation", tau=[7.3, 0.0],
                B1=3, B2=0, margin=3, reason="", pose=None)  # fmt: skip
-    commit = status.record(_commit(), (4.02, -1.4, math.radians(-2.5)), "")
+    commit = records.record(_commit(), (4.02, -1.4, math.radians(-2.5)), "")
     got = [status.status_line(d) for d in (defer, amb, commit)]
     assert tuple(got) == status.EXAMPLE
     multi = dict(OLD, state="AMBIGUOUS", symmetry="multimodal", reason="")
@@ -72,13 +72,13 @@ def test_status_lines_read_as_the_examples():
 
 def test_record_gives_the_robot_pose_in_the_plan_frame():
     X = (1.0, 2.0, math.radians(30.0))
-    d = status.record(_commit(), X, "", offset=(500000.0, 5e6))
+    d = records.record(_commit(), X, "", offset=(500000.0, 5e6))
     # T* = (20, 2, 90 deg): x' = 20 - 2, y' = 2 + 1, heading 120 deg; then + offset.
     assert d["pose"]["x"] == pytest.approx(500018.0, abs=1e-9)
     assert d["pose"]["y"] == pytest.approx(5000003.0, abs=1e-9)
     assert d["pose"]["yaw_deg"] == pytest.approx(120.0)
     assert d["anchor"] == {"x": 500020.0, "y": 5000002.0, "yaw_deg": 90.0}
-    assert status.record(dict(OLD), X, "unsaturated") == dict(
+    assert records.record(dict(OLD), X, "unsaturated") == dict(
         OLD, pose=None, reason="unsaturated", alternatives=None
     )
 
@@ -87,7 +87,7 @@ def test_an_ambiguous_record_lists_where_each_explanation_puts_the_robot():
     X = (1.0, 2.0, math.radians(30.0))
     amb = dict(OLD, state="AMBIGUOUS", symmetry="rotation", B1=4, B2=2, margin=2)
     best, rival = (20.0, 2.0, math.radians(90.0)), (-3.0, 0.0, math.radians(-90.0))
-    d = status.record(amb, X, "competitor not ruled out", (100.0, 0.0), best=best, rival=rival)
+    d = records.record(amb, X, "competitor not ruled out", (100.0, 0.0), best=best, rival=rival)
     assert d["anchor"] is None and d["pose"] is None
     (p, q) = d["alternatives"]
     # robot pose under each anchor, A X_k, then + offset: (18, 3, 120 deg) and (-1, -1, -60 deg)
@@ -117,7 +117,7 @@ def test_robot_pose_is_the_group_product(a, x):
     from mfcl_jax import se2
 
     want = np.asarray(se2.compose(np.asarray(a, np.float32), np.asarray(x, np.float32)))
-    got = np.asarray(status.robot_pose(a, x))
+    got = np.asarray(records.robot_pose(a, x))
     np.testing.assert_allclose(got[:2], want[:2], atol=2e-3)
     assert abs((got[2] - want[2] + np.pi) % (2 * np.pi) - np.pi) < 1e-5
 
@@ -125,7 +125,7 @@ def test_robot_pose_is_the_group_product(a, x):
 # ------------------------------------------------------------------ the decisions file
 def test_decisions_with_pose_and_reason_round_trip(tmp_path):
     rows = [dict(OLD, pose=None, reason="unsaturated", alternatives=None),
-            status.record(_commit(), (0.0, 0.0, 0.0), "")]  # fmt: skip
+            records.record(_commit(), (0.0, 0.0, 0.0), "")]  # fmt: skip
     path = write_decisions(tmp_path / "d.jsonl", rows)
     assert read_decisions(path) == rows
     keys = list(json.loads(path.read_text().splitlines()[1]))
@@ -162,7 +162,7 @@ def test_bad_pose_or_reason_is_named(tmp_path, change, words):
 def test_evaluate_reads_files_with_pose(tmp_path):
     from mfcl_jax.score import decisions_frame
 
-    path = write_decisions(tmp_path / "d.jsonl", [status.record(_commit(), (0, 0, 0), "")])
+    path = write_decisions(tmp_path / "d.jsonl", [records.record(_commit(), (0, 0, 0), "")])
     assert decisions_frame(read_decisions(path))["x"].tolist() == [20.0]
 
 
@@ -257,18 +257,18 @@ def test_the_uniqueness_ratio_is_written_and_shown():
     """A uniqueness lane's line holds ``unique: {llr, needed}`` (null where the test did not
     run, "inf" / "-inf" where nothing competed / a veto held); the status line shows it as
     ``L=ratio/threshold``; a bad entry is named."""
-    assert status.unique_entry(3.35291, 6.9078) == {"llr": 3.3529, "needed": 6.9078}
-    assert status.unique_entry(float("nan"), 2.3026)["llr"] is None
-    assert status.unique_entry(float("inf"), 2.3026)["llr"] == "inf"
-    assert status.unique_entry(float("-inf"), 2.3026)["llr"] == "-inf"
+    assert records.unique_entry(3.35291, 6.9078) == {"llr": 3.3529, "needed": 6.9078}
+    assert records.unique_entry(float("nan"), 2.3026)["llr"] is None
+    assert records.unique_entry(float("inf"), 2.3026)["llr"] == "inf"
+    assert records.unique_entry(float("-inf"), 2.3026)["llr"] == "-inf"
     base = dict(OLD, pose=None, reason="unsaturated", alternatives=None)
-    lines = [status.status_line(dict(base, unique=status.unique_entry(v, 6.9078)))
+    lines = [status.status_line(dict(base, unique=records.unique_entry(v, 6.9078)))
              for v in (3.35291, float("nan"), float("-inf"), float("inf"))]  # fmt: skip
     assert [ln.split("margin=1 ")[1] for ln in lines] == [
         "L=3.35/6.91]", "L=-/6.91]", "L=vetoed/6.91]", "L=inf/6.91]"
     ]  # fmt: skip
     assert "L=" not in status.status_line(base)  # ours: no test, nothing shown
-    line = decision_line(dict(base, unique=status.unique_entry(float("inf"), 6.9078)))
+    line = decision_line(dict(base, unique=records.unique_entry(float("inf"), 6.9078)))
     assert json.loads(line)["unique"] == {"llr": "inf", "needed": 6.9078}
     for bad, words in (({"llr": 1.0}, "expected {llr, needed}"),
                        ({"llr": "big", "needed": 2.3}, "unique.llr='big'"),

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mfcl_jax.floorplan import FloorplanError, load_floorplan, load_ifc, load_rosmap
 from mfcl_jax.io import DataError, read_bag, read_carmen
+from mfcl_jax.sources.data import data_dir
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_dir()
 pytestmark = pytest.mark.skipif(
     not DATA.is_dir(), reason=f"real data folder {DATA} is absent (see shared/data/SOURCES.md)"
 )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,10 +14,11 @@ from scipy import ndimage
 from mfcl_jax.floorplan.roomseg import segment_rooms
 from mfcl_jax.floorplan.rosmap import load_rosmap, read_rosmap_grid
 from mfcl_jax.floorplan.skeleton import thin
+from mfcl_jax.sources.data import data_dir
 from mfcl_jax.sources.occmap import write_rosmap
 
 RES = 0.1
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_dir()
 
 
 class Plan:

@@ -8,18 +8,20 @@ from __future__ import annotations
 
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+
+from mfcl_jax.sources.data import data_dir
 
 pytest.importorskip("cyclonedds")
 
 from mfcl_jax.io.tf_static import sensor_poses  # noqa: E402
 from mfcl_jax.ros2 import messages as M  # noqa: E402
 from mfcl_jax.ros2.dds import Bus, dds_topic, domain_id  # noqa: E402
-from mfcl_jax.ros2.feed import FeedParams, TopicFeed  # noqa: E402
+from mfcl_jax.ros2.feed import TopicFeed  # noqa: E402
 from mfcl_jax.ros2.play import Player, PlayParams, laserscan, odometry_msg, pointcloud2  # noqa: E402
+from mfcl_jax.ros2.topics import FeedParams  # noqa: E402
 from mfcl_jax.se2 import inverse_host  # noqa: E402
 
 MOUNT = (0.2, -0.1, np.pi / 2)
@@ -166,7 +168,7 @@ def test_inverse_mount_round_trip():
     assert np.allclose(sensor_poses(sensor, inverse_host(np.asarray(MOUNT))), base)
 
 
-BAG = Path(__file__).resolve().parents[2] / "shared" / "data" / "laser" / "intel.orig.bag"
+BAG = data_dir() / "laser" / "intel.orig.bag"
 
 
 @pytest.mark.skipif(not BAG.is_file(), reason=f"real data {BAG} is absent")

@@ -155,7 +155,7 @@ def test_anchors_are_reported_in_the_input_odometry_frame():
     places the robot from the input odometry, and both scorers agree on it."""
     import pandas as pd
 
-    from mfcl_jax.robot import status
+    from mfcl_jax.robot import records
     from mfcl_jax.score import score_batch, score_decisions
 
     rec = _drifting(seed=5)
@@ -172,7 +172,7 @@ def test_anchors_are_reported_in_the_input_odometry_frame():
         a = dict(x=H[k, 0], y=H[k, 1], yaw_deg=np.degrees(H[k, 2]))
         d = dict(k=k + 1, t=float(w.t[k]), state="COMMIT", symmetry=None, tau=None, B1=3,
                  B2=0, margin=3, anchor=a)  # fmt: skip
-        return status.record(d, w.X[k], "", (0.0, 0.0), X_input)
+        return records.record(d, w.X[k], "", (0.0, 0.0), X_input)
 
     recs = [line(k, w.X_input[k]) for k in range(len(w))]
     np.testing.assert_allclose([r["pose"]["x"] for r in recs], Y[:, 0], atol=1e-6)

@@ -12,7 +12,7 @@ from shapely.geometry import box
 
 from mfcl_jax.floorplan import Door, Floorplan, Room
 from mfcl_jax.io import DataError
-from mfcl_jax.robot import status
+from mfcl_jax.robot import records
 from mfcl_jax.robot.viz import SCHEMAS, TOPICS, VizWriter
 from tests._mcap import _cloud, _no_leftovers, _read, _xyyaw
 
@@ -38,7 +38,7 @@ def _compose(a, b) -> np.ndarray:
 
 
 def _window(k, t, X, state, anchor=None, rival=None, segment=0, offset=(0.0, 0.0), seen=None):
-    """A ``WindowResult``-like window and its record (``status.record``, anchors local);
+    """A ``WindowResult``-like window and its record (``records.record``, anchors local);
     ``seen``: plan points (local frame) that the robot at ``anchor X`` sees."""
     a, points = None, None
     if state == "COMMIT":
@@ -50,7 +50,7 @@ def _window(k, t, X, state, anchor=None, rival=None, segment=0, offset=(0.0, 0.0
         points = np.stack([c * dx + s * dy, -s * dx + c * dy], 1)
     d = dict(k=k, t=t, state=state, anchor=a, symmetry=None, tau=None, B1=3, B2=0, margin=3)
     best = anchor if state == "AMBIGUOUS" else None
-    rec = status.record(d, X, "", offset, X, best, rival)
+    rec = records.record(d, X, "", offset, X, best, rival)
     return SimpleNamespace(k=k, t=t, X=np.asarray(X), segment=segment, points=points), rec
 
 

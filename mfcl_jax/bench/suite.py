@@ -17,10 +17,11 @@ import numpy as np
 
 from mfcl_jax.bench.config import FAULTS, IFC_MODELS, PROCEDURAL, BenchmarkConfig
 from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams
+from mfcl_jax.sources.data import data_dir
 
 __all__ = ["DATA", "check_logs", "nominal_recordings", "fault_recordings", "ifc_floorplan"]
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+DATA = data_dir()
 
 
 def _log(cfg, msg):

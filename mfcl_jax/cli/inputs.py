@@ -14,7 +14,7 @@ of the mounting the planar odometry cannot hold (height, roll, pitch; from ``--l
 or ``/tf_static``) levels the clouds before the cut.
 
 Anchors and poses in the decision log are in the floor plan's file frame
-(``status.record``). The flags themselves: ``mfcl_jax.cli.flags``.
+(``robot.records.record``). The flags themselves: ``mfcl_jax.cli.flags``.
 """
 
 from __future__ import annotations

@@ -28,6 +28,10 @@ decisions file (--out, JSON lines; one line per window):
   where and why the run was split: the input odometry's step test (a step no robot
   makes) or the LiDAR odometry's jump test (a step the scans do not fit).
 
+several datasets (a folder of dataset folders, or DATASET DATASET ...): each one's
+  decisions file is written the moment it is decided (--out-dir); the datasets are
+  decided by plan size, in chunks within --max-memory.
+
 stopping: Ctrl-C (SIGINT) and SIGTERM (systemd, docker stop, timeout) stop any run the
   same way: what was decided so far is written, atomically (--out, --out-dir, --viz).
 
@@ -110,6 +114,13 @@ def add_localize_command(subparsers) -> None:
         action="store_true",
         help="several datasets: decide the good ones when some cannot be read (they are "
         "named on stderr; exit status 2); default: name every bad one and decide none",
+    )
+    lo.add_argument(
+        "--max-memory",
+        metavar="SIZE",
+        help="several datasets: the resident memory to stay within, e.g. 6G, 512M or 60%% "
+        "(default: 70%% of the memory available at the start); datasets are decided in "
+        "chunks that shrink when one passes it",
     )
     lo.add_argument("--quiet", action="store_true", help="no per-window status lines")
     add_progress_flag(lo)

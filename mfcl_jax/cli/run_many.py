@@ -18,9 +18,12 @@ def localize_many(args, folders, progress: Progress) -> int:
 
     Every dataset is read before any is decided, and all the bad ones are named at once:
     without ``--keep-going`` nothing is decided (exit 2); with it the others are decided and
-    written, and the exit status is 2. Ctrl-C or SIGTERM stops the batch: the datasets
-    decided so far are written, exit 130 or 143."""
+    written, and the exit status is 2. Each dataset's file is written the moment it is
+    decided (``drive.batch``, within ``--max-memory``). Ctrl-C or SIGTERM stops the batch:
+    the datasets decided so far are written, exit 130 or 143."""
     from mfcl_jax.cli.inputs import check_inputs, input_paths
+    from mfcl_jax.drive.batch import Report
+    from mfcl_jax.drive.memory import gib, parse_size
     from mfcl_jax.io import check_output, write_decisions
     from mfcl_jax.robot.signals import StopSignals, stop_status
     from mfcl_jax.robot.status import summary_table
@@ -46,12 +49,18 @@ def localize_many(args, folders, progress: Progress) -> int:
     inputs = input_paths(args, folders)
     for o in outs:
         check_output(o, inputs=inputs)
-    results, bad = {}, {}
-    with StopSignals() as signals:
-        stop = signals.run(lambda: _run_many(args, folders, progress, results, bad))
+    budget = parse_size(args.max_memory) if args.max_memory is not None else None
+    results, bad, report = {}, {}, Report()
+
+    def decided(i, res) -> None:  # written the moment it is decided: a kill keeps it
         with signals.writing():
-            for i in sorted(results):
-                write_decisions(outs[i], results[i].records)
+            write_decisions(outs[i], res.records)
+            results[i] = res
+        signals.arm()
+
+    with StopSignals() as signals:
+        stop = signals.run(lambda: _run_many(args, folders, progress, bad, decided, budget,
+                                             report))  # fmt: skip
     rows = []
     for i, f in enumerate(folders):
         if i in results:
@@ -63,6 +72,10 @@ def localize_many(args, folders, progress: Progress) -> int:
             rows.append(dict(dataset=f.name, windows="-", first_commit=None, final_state=why))
     print(summary_table(rows))
     print(f"decisions: {len(results)} files in {out_dir}")
+    if report.chunks:
+        over = f"; {len(report.over)} chunks above it" if report.over else ""
+        err(f"memory: {gib(report.peak)} at the peak, budget {gib(report.budget)} "
+            f"({len(report.chunks)} chunks{over})")  # fmt: skip
     if stop is not None:
         left = len(folders) - len(results)
         stopped(stop, f"{len(results)} of {len(folders)} datasets decided and written, {left} "
@@ -87,10 +100,10 @@ def _bad_inputs(folders, bad: dict) -> str:
             "--keep-going to decide the others):\n" + "\n".join(lines))  # fmt: skip
 
 
-def _run_many(args, folders, progress, results: dict, bad: dict) -> None:
+def _run_many(args, folders, progress, bad: dict, decided, budget, report) -> None:
     """``localize_many``'s work: reads every dataset (the bad ones into ``bad``, index ->
-    error), then decides the good ones in one batch (into ``results``, index ->
-    ``BatchResult``), printing their status lines."""
+    error), then decides the good ones in one batch (``decided(index, BatchResult)`` as each
+    is decided), printing their status lines."""
     from mfcl_jax.floorplan.model import FloorplanError
 
     start(progress)
@@ -119,9 +132,9 @@ def _run_many(args, folders, progress, results: dict, bad: dict) -> None:
     if bad and loaded:
         err(f"mfcl: --keep-going: deciding the {len(loaded)} other datasets")
     params = localize_params(args)
-    for i, res in _decide(args, loaded, params, progress, bad):
+    for i, res in _decide(args, loaded, params, progress, bad, budget, report):
         f, seq = folders[i], loaded[i][1]
-        results[i] = res
+        decided(i, res)
         splits = Splits(params.window, f)
         if not args.quiet:
             print(f"{f}: {len(seq)} scans, {len(res.records)} windows of {args.d_s:g} m")
@@ -132,12 +145,12 @@ def _run_many(args, folders, progress, results: dict, bad: dict) -> None:
         sys.stdout.flush()
 
 
-def _decide(args, loaded: dict, params, progress, bad: dict):
-    """``(index, BatchResult)`` of the loaded datasets (``localize_batch``). A dataset the
+def _decide(args, loaded: dict, params, progress, bad: dict, budget, report):
+    """``(index, BatchResult)`` of the loaded datasets (``drive.batch``). A dataset the
     batch cannot decide (``DataError``) stops it; with ``--keep-going`` the datasets left
     are then decided one by one, and those that fail go into ``bad``."""
+    from mfcl_jax.drive import batch
     from mfcl_jax.floorplan.model import FloorplanError
-    from mfcl_jax.robot.many import localize_batch
 
     todo = sorted(loaded)
     if not todo:
@@ -145,7 +158,7 @@ def _decide(args, loaded: dict, params, progress, bad: dict):
     done = set()
     try:
         fps, seqs = [loaded[i][0] for i in todo], [loaded[i][1] for i in todo]
-        for j, res in localize_batch(fps, seqs, params, progress):
+        for j, res in batch.decide_batch(fps, seqs, params, progress, budget, report=report):
             done.add(todo[j])
             yield todo[j], res
         return
@@ -159,7 +172,8 @@ def _decide(args, loaded: dict, params, progress, bad: dict):
             return
     for i in left:
         try:
-            for _, res in localize_batch([loaded[i][0]], [loaded[i][1]], params, progress):
+            for _, res in batch.decide_batch([loaded[i][0]], [loaded[i][1]], params, progress,
+                                             budget, report=report):  # fmt: skip
                 yield i, res
         except (DataError, FloorplanError) as e:
             bad[i] = str(e)

@@ -27,7 +27,7 @@ from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend import COMPILER_OPTIONS, FrontendParams, registration
 from mfcl_jax.frontend.driver import FrontEnd
-from mfcl_jax.robot import status
+from mfcl_jax.robot import records, status
 from mfcl_jax.robot.traced import Traced
 from mfcl_jax.windows.arrays import (
     EVIDENCE_POINTS,
@@ -84,7 +84,7 @@ class LocalizeParams:
 def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None,
               unique_llr: float | None = None) -> dict:  # fmt: skip
     """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
-    anchor (when COMMIT), the robot's pose and the reason (``status.record``); ``k`` the
+    anchor (when COMMIT), the robot's pose and the reason (``records.record``); ``k`` the
     window's index over the whole recording, ``segment`` (when given) its odometry segment;
     ``unique_llr`` (a uniqueness lane's ``log(1 / alpha)``) adds ``unique``: the test's ratio
     at this window against that threshold (null where the test did not run)."""
@@ -108,9 +108,9 @@ def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment
         "margin": int(dec.margin),
     }
     rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
-    d = status.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+    d = records.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
     if unique_llr is not None:
-        d["unique"] = status.unique_entry(float(dec.llr), unique_llr)
+        d["unique"] = records.unique_entry(float(dec.llr), unique_llr)
     return d
 
 

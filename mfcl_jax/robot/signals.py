@@ -125,6 +125,12 @@ class StopSignals:
         self._armed = False
         return Stopped(self.received) if self.received is not None else None
 
+    def arm(self) -> None:
+        """After a ``writing`` in the middle of the run: signals raise again (one that came
+        during the write is raised now)."""
+        self._armed = True
+        self.check()
+
     @contextmanager
     def writing(self):
         """The outputs are being written: a signal now is remembered, not raised."""

@@ -1,39 +1,28 @@
 """A robot's topics as a recording that grows: DDS samples in, ``ScanSequence`` prefixes out.
 
-``TopicFeed`` reads the scan topic (``sensor_msgs/LaserScan``, or ``PointCloud2`` with
-``cloud=True``), the odometry (``nav_msgs/Odometry``, or ``/tf``'s transforms from
-``odom_frames[0]`` to ``odom_frames[1]``) and, unless the mounting is given, ``/tf_static``
-(the chain from ``base_frame`` to the scans' ``header.frame_id``). Scans join in stamp order,
-as ``robot.live.Follower`` joins a folder's files: once the odometry reaches their stamp
-(an odometry message at or after it: the pose is then interpolated as the batch path does,
-never taken from a stamp up to 1 ms before; ``io.timesync``) and composed with the
-mounting, so each joined scan carries the SENSOR pose in the odometry frame, the
-convention of every ``ScanSequence``. 3-D clouds are cut by the height band as they arrive
-(``sources.planar.PlanarStream``).
+``TopicFeed`` reads the scan topic (``LaserScan``, or ``PointCloud2`` with ``cloud=True``), the
+odometry (``nav_msgs/Odometry``, or ``/tf`` from ``odom_frames[0]`` to ``odom_frames[1]``) and,
+unless the mounting is given, ``/tf_static`` (``base_frame`` to the scans' frame). Scans join in
+stamp order, as ``robot.live.Follower`` joins a folder's files: once an odometry message at or
+after their stamp arrives (the pose interpolated as the batch path does, ``io.timesync``),
+composed with the mounting (the SENSOR pose in the odometry frame). 3-D clouds are cut by the
+height band as they arrive (``sources.planar.PlanarStream``).
 
-What the stamps say, and what the feed does:
+- a stamp older than its stream's newest by more than ``topics.JUMP_S`` starts a new epoch of
+  that stream; once scans and odometry have both jumped, the segment ends (``prefixes``
+  returns); a stamp at or a little before the newest is late, left out and counted;
+- a scan older than its segment's first odometry is left out (counted);
+- ``silence_s`` s of wall time without a message on a topic: ``notify("silent", reason)``;
+- a message that cannot be read (a bad quaternion, a PointCloud2 without x): a warning naming
+  the topic, the stamp and the value, the message left out (counted).
 
-- a stamp older than its stream's newest by more than ``JUMP_S`` (a bag started again, a
-  simulator reset): that stream starts a new epoch. Once the scans and the odometry have
-  both jumped, the segment ends (``prefixes`` returns) and the next begins with the new
-  messages; a stamp at or a little before the newest is late and left out (counted);
-- a scan older than the first odometry of its segment is left out (counted);
-- no message on the scan or the odometry topic for ``silence_s`` seconds of wall time:
-  ``notify("silent", reason)``, repeated every ``silence_s`` while it lasts;
-- a message that cannot be read (a bad quaternion, a PointCloud2 without x): a warning
-  naming the topic, the stamp and the value on stderr, the message left out (counted): a
-  live node does not stop for one bad message.
-
-Memory stays bounded on a long run: ``release(j)`` drops the points of the scans before
-index ``j`` (windows already decided never look at them again); what stays per scan is its
-stamp and pose.
+``release(j)`` drops the points before scan ``j``: memory stays bounded on a long run.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,71 +31,20 @@ from mfcl_jax.io.tf_static import sensor_poses
 from mfcl_jax.io.timesync import TIME_TOL_S, interpolate_se2
 from mfcl_jax.robot.signals import checkpoint
 from mfcl_jax.ros2 import dds
-from mfcl_jax.sources.planar import PlanarParams, PlanarStream
+from mfcl_jax.ros2.topics import FeedParams, Stream
+from mfcl_jax.sources.planar import PlanarStream
 from mfcl_jax.sources.sequence import ScanSequence
 
-__all__ = ["FeedParams", "TopicFeed", "JUMP_S"]
+__all__ = ["TopicFeed"]
 
-JUMP_S = 1.0  # a stamp this much older than its stream's newest: the stream started again
 _EMPTY = np.zeros((0, 2))
-
-
-@dataclass(frozen=True)
-class FeedParams:
-    """Which topics and frames the feed reads.
-
-    Attributes:
-        scan_topic: the scan topic; ``cloud``: it carries ``PointCloud2`` (else LaserScan).
-        odom_topic: ``nav_msgs/Odometry`` topic, or ``/tf`` (then ``odom_frames``).
-        odom_frames: ``(odom, base)`` frames of the odometry transform on ``/tf``.
-        base_frame: the robot's base (the ``/tf_static`` chain starts there).
-        mount: the LiDAR's planar pose ``(x, y, yaw)`` on the base, or ``None``: read it
-            from ``/tf_static``.
-        planar: how scans become planar (2-D, 3-D band, the mount's height and tilt).
-        silence_s: seconds without messages on a topic before it is called silent.
-        reliable: read the scans and odometry reliably (``dds.STREAM``; the writers must be
-            reliable) instead of best effort (``dds.SENSOR``, the default: any writer).
-    """
-
-    scan_topic: str = "/scan"
-    cloud: bool = False
-    odom_topic: str = "/odom"
-    odom_frames: tuple[str, str] = ("odom", "base_link")
-    base_frame: str = "base_link"
-    mount: tuple[float, float, float] | None = None
-    planar: PlanarParams = field(default_factory=PlanarParams)
-    silence_s: float = 5.0
-    tf_static_topic: str = "/tf_static"
-    reliable: bool = False
-
-
-class _Stream:
-    """Stamps of one topic: its newest stamp, its epoch (+1 at each backward jump)."""
-
-    def __init__(self):
-        self.newest: float | None = None
-        self.epoch = 0
-        self.late = 0
-        self.heard = None  # wall time of the last message
-
-    def tag(self, t: float, now: float) -> int | None:
-        """The epoch of a message stamped ``t``, or None when it is late."""
-        self.heard = now
-        if self.newest is not None and t < self.newest - JUMP_S:
-            self.epoch += 1
-        elif self.newest is not None and t <= self.newest:
-            self.late += 1
-            return None
-        self.newest = t
-        return self.epoch
 
 
 class TopicFeed:
     """The robot's topics as ``ScanSequence`` prefixes, one segment at a time.
 
     Args:
-        bus: a ``dds.Bus``.
-        params: ``FeedParams``.
+        bus, params: a ``dds.Bus``; ``FeedParams``.
         notify: ``notify(event, reason)`` for ``"silent"`` and ``"warning"``.
         poll: the longest wait for a message (s) before the silence is checked again.
     """
@@ -115,8 +53,7 @@ class TopicFeed:
                  poll: float = 0.1, clock=time.monotonic):  # fmt: skip
         from mfcl_jax.ros2 import messages as M
 
-        self.params, self.notify, self.poll = params, notify, poll
-        self._clock = clock
+        self.params, self.notify, self.poll, self._clock = params, notify, poll, clock
         kind = M.PointCloud2 if params.cloud else M.LaserScan
         qos = dds.STREAM if params.reliable else dds.SENSOR
         self._scan_reader = bus.reader(params.scan_topic, kind, qos)
@@ -129,7 +66,7 @@ class TopicFeed:
         self._edges: dict = {}
         self._mounts: dict = {}  # scan frame -> planar mount
         self.frame_id = ""
-        self._scans, self._odom = _Stream(), _Stream()
+        self._scans, self._odom = Stream(), Stream()
         self._segment = 0  # epoch of both streams that the current segment reads
         self._odom_t: dict[int, list] = {}  # epoch -> stamps / base poses
         self._odom_p: dict[int, list] = {}

@@ -32,7 +32,8 @@ import numpy as np
 
 from mfcl_jax.ros2 import dds
 from mfcl_jax.ros2 import messages as M
-from mfcl_jax.ros2.feed import FeedParams, TopicFeed
+from mfcl_jax.ros2.feed import TopicFeed
+from mfcl_jax.ros2.topics import FeedParams
 
 __all__ = ["NodeParams", "Node", "TF_AHEAD_S"]
 

@@ -19,8 +19,8 @@ def node_params(args):
     """``NodeParams`` from the flags (checked)."""
     from mfcl_jax.cli.inputs import planar_params
     from mfcl_jax.ros2.dds import dds_topic
-    from mfcl_jax.ros2.feed import FeedParams
     from mfcl_jax.ros2.node import NodeParams
+    from mfcl_jax.ros2.topics import FeedParams
     from mfcl_jax.sources.planar import mount_3d
 
     if not (math.isfinite(args.silence) and args.silence > 0):

@@ -1,7 +1,8 @@
 """Every input as one record: a ``Recording`` (floor plan + ``ScanSequence`` + optional
 ``GroundTruth``)."""
 
-from mfcl_jax.sources.dataset import Dataset, load_dataset, write_dataset
+from mfcl_jax.sources.dataset import Dataset, load_dataset
+from mfcl_jax.sources.dataset_write import write_dataset
 from mfcl_jax.sources.recording import GroundTruth, Recording
 from mfcl_jax.sources.sequence import (
     ScanSequence,

@@ -40,6 +40,7 @@ import numpy as np
 
 from mfcl_jax.sim.trajectory import odometry
 from mfcl_jax.sources.bagtruth import bag_ground_truth, carry, truth_at_scans
+from mfcl_jax.sources.data import data_dir
 from mfcl_jax.sources.heldout import default_cache_dir, file_digest, held_out_map
 from mfcl_jax.sources.logwindows import plan_windows
 from mfcl_jax.sources.recording import GroundTruth, Recording
@@ -55,7 +56,7 @@ __all__ = [
 ]
 
 LOGS: tuple[str, ...] = ("intel", "freiburg-101", "orebro", "seattle")
-DATA = (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve()
+DATA = data_dir()
 UNTIMED_PERIOD_S = 1.0
 BAG_AGREE = 0.95  # a bag <-> log match is trusted when this fraction of points coincide
 _BUCKET = 256  # odometry rows; one compiled shape per bucket, whatever the window's length

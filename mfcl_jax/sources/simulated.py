@@ -212,7 +212,7 @@ def simulate_dataset(
     odometry, from the first scan's time to the last's), instead of one pose per scan.
     """
     from mfcl_jax.floorplan.origin import to_local_frame, to_plan_frame
-    from mfcl_jax.sources.dataset import write_dataset
+    from mfcl_jax.sources.dataset_write import write_dataset
     from mfcl_jax.sources.walks import check_waypoints
 
     wp = to_local_frame(np.asarray(waypoints, np.float64), floorplan.offset)

@@ -33,13 +33,14 @@ import pandas as pd
 
 from mfcl_jax.robot.localizer import LocalizeParams, Localizer
 from mfcl_jax.score import score_decisions, summarize
+from mfcl_jax.sources.data import data_dir
 from mfcl_jax.sources.sequence import ScanSequence
 from mfcl_jax.sources.walks import route
 from mfcl_jax.study.real_walks import DUPLEX, OFFICE
 
 __all__ = ["run_all", "main"]
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+DATA = data_dir()
 DRIFT_XY, DRIFT_YAW_DEG = 0.01, 0.5  # wheel-odometry-like drift for the Intel log
 EARLY = "ours_unique"  # mfcl localize --early-commit 1e-3
 

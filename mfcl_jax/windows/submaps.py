@@ -148,7 +148,7 @@ class Windows:
         params: the ``WindowParams`` used.
         odometry: ``(M, 3)`` the layer's odometry at every keyframe.
         X_input: ``(K, 3)`` the input odometry at each window's last scan (an anchor of the
-            layer's frame is reported in the input's by ``status.record``).
+            layer's frame is reported in the input's by ``robot.records.record``).
         segments: ``(M,)`` odometry segment of every keyframe: 0, plus one after every jump,
             whether the input odometry's step shows it (``odometry_segments``) or the LiDAR
             odometry's jump test finds it (``scanmatch``). No window straddles a jump.

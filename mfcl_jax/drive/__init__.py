@@ -1,0 +1,1 @@
+"""Driving the layer over many recordings at once, within a memory budget."""

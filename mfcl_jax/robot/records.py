@@ -1,0 +1,79 @@
+"""The decisions file's record of a window: the anchor moved to the plan frame, the robot's
+pose, the reason and the alternatives (``record``), and the uniqueness test's entry.
+
+The robot's CURRENT pose at window ``k`` is ``T* X_k``: the anchor ``T* = ^B T_L`` (the
+plan frame from the odometry frame) composed with the odometry pose ``X_k = ^L T_{S_k}`` of
+the window's last scan. A person wants that pose, not the anchor, which is a frame change.
+Host float64 throughout, so that large plan coordinates keep their millimetres.
+"""
+
+from __future__ import annotations
+
+import math
+
+from mfcl_jax.se2 import wrap_host
+
+__all__ = ["robot_pose", "record", "unique_entry"]
+
+
+def robot_pose(anchor, X) -> tuple[float, float, float]:
+    """``T* X_k``: the pose ``(x, y, yaw)`` (float64, yaw wrapped to ``(-pi, pi]``) from the
+    anchor ``(x, y, yaw)`` and the odometry pose ``X`` (radians)."""
+    ax, ay, ayaw = (float(v) for v in anchor)
+    x, y, yaw = (float(v) for v in X)
+    c, s = math.cos(ayaw), math.sin(ayaw)
+    t = ayaw + yaw
+    return ax + c * x - s * y, ay + s * x + c * y, float(wrap_host(t))
+
+
+def record(
+    decision: dict, X, reason: str, offset=(0.0, 0.0), X_input=None, best=None, rival=None
+) -> dict:
+    """A decisions-file line: ``decision`` (``Decision.to_json``'s keys, anchor in the local
+    frame of the layer's odometry) with its anchor moved to the plan frame (``offset``: plan =
+    local + offset, ``Floorplan.offset``), ``pose`` (``T* X_k`` in the plan frame when COMMIT),
+    ``reason`` and ``alternatives``. ``X`` is the window's pose in the layer's odometry;
+    ``X_input`` the input odometry's pose at the same time (default ``X``): the anchor written
+    is the one that places the robot at ``pose`` from the input odometry, ``(T* X) X_input^-1``.
+
+    ``alternatives`` (AMBIGUOUS only, else null): the robot's pose ``A X_k`` in the plan frame
+    under each explanation the layer could not tell apart: ``best`` (``T*``), then ``rival``
+    (the strongest competitor, or None), both anchors ``(x, y, yaw)`` in the local frame.
+    """
+    ox, oy = (float(v) for v in offset)
+    alt = None
+    if decision["state"] == "AMBIGUOUS" and best is not None:
+        alt = []
+        for a in [best] + ([] if rival is None else [rival]):
+            px, py, pyaw = robot_pose(a, X)
+            alt.append({"x": px + ox, "y": py + oy, "yaw_deg": math.degrees(pyaw)})
+    d = dict(decision, pose=None, reason=str(reason), alternatives=alt)
+    a = d["anchor"]
+    if a is None:
+        return d
+    yaw = math.radians(a["yaw_deg"])
+    px, py, pyaw = robot_pose((a["x"], a["y"], yaw), X)
+    if X_input is not None:
+        # (T* X_k) X_input^-1: the pose written, reached from the input odometry.
+        xi, yi, yawi = (float(v) for v in X_input)
+        ayaw = pyaw - yawi
+        c, s = math.cos(ayaw), math.sin(ayaw)
+        a = dict(a, x=px - (c * xi - s * yi), y=py - (s * xi + c * yi),
+                 yaw_deg=math.degrees(float(wrap_host(ayaw))))  # fmt: skip
+    # Large plan coordinates: add the offset last, in float64, so millimetres survive.
+    d["anchor"] = dict(a, x=float(a["x"]) + ox, y=float(a["y"]) + oy)
+    d["pose"] = {"x": float(px) + ox, "y": float(py) + oy, "yaw_deg": math.degrees(pyaw)}
+    return d
+
+
+def unique_entry(llr: float, needed: float) -> dict:
+    """The decisions file's ``unique`` entry: the uniqueness test's ratio at a window
+    (``llr``: NaN where it did not run, written null; +inf where no other placement was
+    found, written "inf") and the ratio a commit needs (``needed``, ``log(1 / alpha)``)."""
+    if math.isnan(llr):
+        value = None
+    elif math.isinf(llr):
+        value = "inf" if llr > 0 else "-inf"
+    else:
+        value = round(float(llr), 4)
+    return {"llr": value, "needed": round(float(needed), 4)}

@@ -59,7 +59,7 @@ def test_jit_and_no_jit_agree(asym):
 def test_sample_matches_bilinear_and_its_gradient(asym):
     fp = asym[0]
     r = fp.rasterize(0.10)
-    sdf, _ = verify.plan_fields(fp, r, 0.05)
+    sdf, _ = verify.surface_fields(fp, r, 0.05)
     f4 = jnp.asarray(verify.stack4(sdf, verify.FAR))
     xy = np.random.default_rng(1).uniform([-1.5, -1.5], [17.5, 9.5], (200, 2)).astype(np.float32)
     v, g = verify.sample(r.origin, r.res, f4, xy, verify.FAR, grad=True)

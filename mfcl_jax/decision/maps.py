@@ -210,7 +210,7 @@ def decision_maps(
     from mfcl_jax.frontend import verify
 
     fp = None if isinstance(source, Rasters) else source
-    sdf, pen = verify.plan_fields(fp, r, CERT_SIGMA_FREE)
+    sdf, pen = verify.surface_fields(fp, r, CERT_SIGMA_FREE)
     sdf4, pen4 = verify.stack4(sdf, verify.FAR), verify.stack4(pen, float(r.outside))
     return DecisionMaps(origin, label, adj, sym, sdf4, pen4, float(r.res))
 

@@ -130,7 +130,7 @@ def build_features(
         rasters = pad_to(rasters, tuple(shape or rasters.shape), n_rooms)
     if corner_capacity is not None:
         corners = _pad_corners(corners, corner_capacity)
-    sdf, pen = verify.plan_fields(fp, rasters, params.sigma_free)
+    sdf, pen = verify.surface_fields(fp, rasters, params.sigma_free)
     pos, a1, a2, kind, valid = (np.asarray(c) for c in corners)
     return FloorplanFeatures(
         rasters=rasters.to_jax(),

@@ -41,7 +41,7 @@ __all__ = [
     "FAR",
     "block_scores",
     "free_samples",
-    "plan_fields",
+    "surface_fields",
     "stack4",
     "sample",
     "sample_xy",
@@ -79,7 +79,7 @@ def free_samples(pts, org, ok, n_samples: int, stop: float):
     return jnp.stack([qx, qy], -1), q_ok
 
 
-def plan_fields(fp, rasters, sigma_free: float, band: float = 0.6):
+def surface_fields(fp, rasters, sigma_free: float, band: float = 0.6):
     """Host: signed wall-surface distance and free-space penalty on the raster grid.
 
     The sign comes from the raster's wall mask (cell-centre containment); the magnitude is the

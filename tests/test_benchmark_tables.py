@@ -138,7 +138,7 @@ def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
     """Right COMMIT windows give the largest errors and share of the 1 m / 5 deg line; a window
     past the line counts as wrong and is left out of the maxima; non-COMMIT windows and other
     policies are ignored; fault rows are counted per (run, fault, level)."""
-    from mfcl_jax.bench.report import commit_margins
+    from mfcl_jax.bench.calibration import commit_margins
 
     rows = [  # name, family, fault, level, policy, state, err_xy, err_yaw_deg
         ("a/s0", "plain", None, None, "ours", "COMMIT", 0.10, 1.0),

@@ -24,7 +24,7 @@ from mfcl_jax.decision.lattice import ROTATION, TRANSLATION
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.symmetry import rotational_motions
 from mfcl_jax.floorplan import Door, Floorplan, Room
-from mfcl_jax.robot.localizer import record_of
+from mfcl_jax.robot.records import record_of
 from tests._decision_row import NAMES, ours
 from tests._layer import CAPS, J, K, evaluate_runs, evidence_of, lanes_of, maps_of, step, window
 from tests.test_decision_scenes import WT, make_run, row_of_rooms, three_rooms, walk

@@ -1,4 +1,10 @@
-"""The uniqueness test's ratio against what the layer reported, window by window.
+"""How much room the right commits had: the uniqueness test's ratio against what the layer
+reported, window by window, and the commit margins.
+
+Commit margins (``commit_margins``): how close the COMMIT windows came to the line between a
+right and a false commit (``CORRECT_XY`` m, ``CORRECT_YAW_DEG``), per family. Zero false
+commits on the benchmark say little about a building we have never seen if the right ones
+passed at 0.9 of the line; this table says how much room there was.
 
 The test (``decision.uniqueness``) compares the best placement of the whole path with the best
 one outside its neighbourhood: ``llr = L(A*) - L(competitor)``. Under its observation model a
@@ -20,7 +26,9 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["EDGES", "LANE_ALPHAS", "ratio_calibration", "fault_level_calibration"]
+from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
+
+__all__ = ["EDGES", "LANE_ALPHAS", "ratio_calibration", "fault_level_calibration", "commit_margins"]
 
 # the uniqueness lanes' error rates, by the suffix of their column in ``fault_level_calibration``
 LANE_ALPHAS = {"a1": 1e-1, "a2": 1e-2, "a3": 1e-3, "a4": 1e-4, "a6": 1e-6}
@@ -103,4 +111,44 @@ def fault_level_calibration(windows: pd.DataFrame, policy: str = "ours_unique_a6
         rows.append(row(name, lev, (fault == name) & (level == lev)))
     if (fault != "").any():
         rows.append(row("all fault rows", "", fault != ""))
+    return pd.DataFrame(rows)
+
+
+def commit_margins(windows: pd.DataFrame, policy: str = "ours") -> pd.DataFrame:
+    """Per family (nominal runs), then all nominal runs and all fault rows: the COMMIT windows
+    of ``policy`` at the default thresholds and how close the right ones came to the line.
+
+    Args:
+        windows: the benchmark's per-window table (``windows.csv.gz``: ``name, family, fault,
+            policy, state, err_xy, err_yaw_deg``).
+        policy: the policy reported.
+
+    Returns:
+        One row per group: ``commit_windows``, ``wrong`` (COMMIT windows past the line),
+        ``max_xy_m`` and ``max_yaw_deg`` (largest error among the right ones), ``use`` (the
+        largest share of the line used by a right one: ``max(err_xy / CORRECT_XY, err_yaw /
+        CORRECT_YAW_DEG)``), ``over_half`` (right ones past half the line) and ``runs`` with a
+        commit.
+    """
+    w = windows[(windows["policy"] == policy) & (windows["state"] == "COMMIT")].copy()
+    w["fault"] = w["fault"].fillna("").astype(str)
+    w["use"] = np.maximum(w["err_xy"] / CORRECT_XY, w["err_yaw_deg"] / CORRECT_YAW_DEG)
+
+    def row(group: str, g: pd.DataFrame) -> dict:
+        right = g[g["use"] <= 1.0]
+        return dict(
+            group=group,
+            runs=len(g.drop_duplicates([c for c in ("name", "fault", "level") if c in g])),
+            commit_windows=len(g),
+            wrong=int((g["use"] > 1.0).sum()),
+            max_xy_m=float(right["err_xy"].max()) if len(right) else math.nan,
+            max_yaw_deg=float(right["err_yaw_deg"].max()) if len(right) else math.nan,
+            use=float(right["use"].max()) if len(right) else math.nan,
+            over_half=int((right["use"] > 0.5).sum()),
+        )
+
+    nom = w[w["fault"] == ""]
+    rows = [row(fam, g) for fam, g in nom.groupby("family", sort=False)]
+    rows.append(row("all nominal", nom))
+    rows.append(row("all fault rows", w[w["fault"] != ""]))
     return pd.DataFrame(rows)

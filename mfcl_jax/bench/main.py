@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from mfcl_jax.bench import figures, report, suite
-from mfcl_jax.bench.calibration import fault_level_calibration, ratio_calibration
+from mfcl_jax.bench.calibration import commit_margins, fault_level_calibration, ratio_calibration
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.io.atomic import atomic_write
@@ -121,7 +121,7 @@ def _read_table(f: Path) -> pd.DataFrame:
 
 
 def write_margins(out) -> pd.DataFrame:
-    """``margins.csv/.md`` (``report.commit_margins``) and, where the uniqueness lanes ran,
+    """``margins.csv/.md`` (``calibration.commit_margins``) and, where the uniqueness lanes ran,
     ``ratio_calibration.csv/.md`` and ``ratio_calibration_faults.csv/.md``
     (``calibration.ratio_calibration``, ``calibration.fault_level_calibration``) from the folder's
     ``windows.csv.gz``; returns the margins."""
@@ -130,7 +130,7 @@ def write_margins(out) -> pd.DataFrame:
     if not f.is_file():
         raise FileNotFoundError(f"margins: {f} not found (run the benchmark first)")
     windows = _read_table(f)
-    tab = report.commit_margins(windows)
+    tab = commit_margins(windows)
     write_table(tab, out, "margins")
     if "llr" in windows and (windows["policy"] == "ours_unique_a6").any():
         write_table(ratio_calibration(windows), out, "ratio_calibration")

@@ -16,10 +16,7 @@ Per run and policy (threshold set ``DEFAULT_SET`` unless stated):
   restart counts from the run's start, the jump itself counting nothing. ``delay_m`` is
   ``commit_m - oracle_m`` for the runs ``delay`` is given for; the tables' ``median_commit_m``
   and ``median_delay_m`` are medians over the same runs as ``median_delay``;
-* commit margins (``commit_margins``): how close the COMMIT windows came to the line between
-  a right and a false commit (``CORRECT_XY`` m, ``CORRECT_YAW_DEG``), per family. Zero false
-  commits on the benchmark say little about a building we have never seen if the right ones
-  passed at 0.9 of the line; this table says how much room there was.
+The margins of the right commits and the ratio calibration: ``bench.calibration``.
 """
 
 from __future__ import annotations
@@ -32,7 +29,6 @@ import pandas as pd
 from mfcl_jax.bench.config import FAULTS
 from mfcl_jax.bench.run import DEFAULT_SET, KNOB_SETS
 from mfcl_jax.score import first_commits, wilson
-from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
 __all__ = [
     "run_table",
@@ -43,7 +39,6 @@ __all__ = [
     "label_strength",
     "fault_table",
     "first_false_level",
-    "commit_margins",
 ]
 
 
@@ -276,44 +271,4 @@ def first_false_level(runs: pd.DataFrame, policies) -> pd.DataFrame:
             bad = [str(lv) for lv in FAULTS[axis] if h[h["level"] == str(lv)]["any_false"].any()]
             row[pol] = bad[0] if bad else "none"
         rows.append(row)
-    return pd.DataFrame(rows)
-
-
-def commit_margins(windows: pd.DataFrame, policy: str = "ours") -> pd.DataFrame:
-    """Per family (nominal runs), then all nominal runs and all fault rows: the COMMIT windows
-    of ``policy`` at the default thresholds and how close the right ones came to the line.
-
-    Args:
-        windows: the benchmark's per-window table (``windows.csv.gz``: ``name, family, fault,
-            policy, state, err_xy, err_yaw_deg``).
-        policy: the policy reported.
-
-    Returns:
-        One row per group: ``commit_windows``, ``wrong`` (COMMIT windows past the line),
-        ``max_xy_m`` and ``max_yaw_deg`` (largest error among the right ones), ``use`` (the
-        largest share of the line used by a right one: ``max(err_xy / CORRECT_XY, err_yaw /
-        CORRECT_YAW_DEG)``), ``over_half`` (right ones past half the line) and ``runs`` with a
-        commit.
-    """
-    w = windows[(windows["policy"] == policy) & (windows["state"] == "COMMIT")].copy()
-    w["fault"] = w["fault"].fillna("").astype(str)
-    w["use"] = np.maximum(w["err_xy"] / CORRECT_XY, w["err_yaw_deg"] / CORRECT_YAW_DEG)
-
-    def row(group: str, g: pd.DataFrame) -> dict:
-        right = g[g["use"] <= 1.0]
-        return dict(
-            group=group,
-            runs=len(g.drop_duplicates([c for c in ("name", "fault", "level") if c in g])),
-            commit_windows=len(g),
-            wrong=int((g["use"] > 1.0).sum()),
-            max_xy_m=float(right["err_xy"].max()) if len(right) else math.nan,
-            max_yaw_deg=float(right["err_yaw_deg"].max()) if len(right) else math.nan,
-            use=float(right["use"].max()) if len(right) else math.nan,
-            over_half=int((right["use"] > 0.5).sum()),
-        )
-
-    nom = w[w["fault"] == ""]
-    rows = [row(fam, g) for fam, g in nom.groupby("family", sort=False)]
-    rows.append(row("all nominal", nom))
-    rows.append(row("all fault rows", w[w["fault"] != ""]))
     return pd.DataFrame(rows)

@@ -28,8 +28,9 @@ import numpy as np
 
 from mfcl_jax import windows as W
 from mfcl_jax.drive.memory import PeakSampler, default_budget, gib, resident
-from mfcl_jax.robot.localizer import LocalizeParams, record_of
+from mfcl_jax.robot.localizer import LocalizeParams
 from mfcl_jax.robot.progress import COMPILING, Progress
+from mfcl_jax.robot.records import record_of
 
 __all__ = ["BatchResult", "Report", "decide_batch", "CHUNK"]
 
@@ -41,7 +42,7 @@ class BatchResult:
     """The windows of one recording.
 
     Attributes:
-        records: one decisions-file record per window (``localizer.record_of``).
+        records: one decisions-file record per window (``records.record_of``).
         details: per window, the status line's detail (points, candidates).
     """
 

@@ -19,11 +19,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import windows as W
-from mfcl_jax.decision import lattice, layer, rivals
+from mfcl_jax.decision import layer, rivals
 from mfcl_jax.decision.history import Caps
 from mfcl_jax.decision.lanes import ROBOT_POLICIES, make_lanes, unique_threshold
 from mfcl_jax.decision.maps import decision_maps
-from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
+from mfcl_jax.decision.outcome import Decision
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.frontend import COMPILER_OPTIONS, FrontendParams, registration
 from mfcl_jax.frontend.driver import FrontEnd
@@ -37,7 +37,7 @@ from mfcl_jax.windows.arrays import (
     evidence_sample,
 )
 
-__all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize", "record_of"]
+__all__ = ["LocalizeParams", "WindowResult", "Localizer", "localize"]
 
 ROBOT_CAPS = Caps(windows=64, cands=32, traj=1024, step=64, evidence=EVIDENCE_POINTS)
 
@@ -81,39 +81,6 @@ class LocalizeParams:
         return replace(self, window=replace(self.window, d_s=float(d_s)))
 
 
-def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None,
-              unique_llr: float | None = None) -> dict:  # fmt: skip
-    """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
-    anchor (when COMMIT), the robot's pose and the reason (``records.record``); ``k`` the
-    window's index over the whole recording, ``segment`` (when given) its odometry segment;
-    ``unique_llr`` (a uniqueness lane's ``log(1 / alpha)``) adds ``unique``: the test's ratio
-    at this window against that threshold (null where the test did not run)."""
-    state = STATE_NAMES[int(dec.state)]
-    kind = lattice.KIND_NAMES[int(dec.kind)]
-    a = np.asarray(dec.anchor, np.float64)
-    anchor = None
-    if state == "COMMIT":
-        anchor = {"x": float(a[0]), "y": float(a[1]), "yaw_deg": float(np.rad2deg(a[2]))}
-    d = {"k": int(k)}
-    if segment is not None:
-        d["segment"] = int(segment)
-    d |= {
-        "t": float(t),
-        "state": state,
-        "anchor": anchor,
-        "symmetry": kind,
-        "tau": [float(v) for v in np.asarray(dec.tau)] if kind == "translation" else None,
-        "B1": int(dec.b1),
-        "B2": int(dec.b2),
-        "margin": int(dec.margin),
-    }
-    rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
-    d = records.record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
-    if unique_llr is not None:
-        d["unique"] = records.unique_entry(float(dec.llr), unique_llr)
-    return d
-
-
 @dataclass(frozen=True)
 class WindowResult:
     """One window: where it lies in the input, what the front-end saw, the decision.
@@ -154,9 +121,9 @@ class WindowResult:
     unique_llr: float | None = None
 
     def record(self, offset=(0.0, 0.0)) -> dict:
-        """The decisions-file line (``record_of``; ``offset``: plan = local + offset), with
+        """The decisions-file line (``records.record_of``; ``offset``: plan = local + offset), with
         the window's ``k`` over the recording and its odometry ``segment``."""
-        return record_of(self.decision, self.k, self.t, self.X, self.X_input, offset,
+        return records.record_of(self.decision, self.k, self.t, self.X, self.X_input, offset,
                          self.segment, self.unique_llr)  # fmt: skip
 
     def status(self, offset=(0.0, 0.0)) -> str:

@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from mfcl_jax.decision import lattice
+from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
 from mfcl_jax.se2 import wrap_host
 
-__all__ = ["robot_pose", "record", "unique_entry"]
+__all__ = ["robot_pose", "record", "record_of", "unique_entry"]
 
 
 def robot_pose(anchor, X) -> tuple[float, float, float]:
@@ -77,3 +81,36 @@ def unique_entry(llr: float, needed: float) -> dict:
     else:
         value = round(float(llr), 4)
     return {"llr": value, "needed": round(float(needed), 4)}
+
+
+def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None,
+              unique_llr: float | None = None) -> dict:  # fmt: skip
+    """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
+    anchor (when COMMIT), the robot's pose and the reason (``record``); ``k`` the
+    window's index over the whole recording, ``segment`` (when given) its odometry segment;
+    ``unique_llr`` (a uniqueness lane's ``log(1 / alpha)``) adds ``unique``: the test's ratio
+    at this window against that threshold (null where the test did not run)."""
+    state = STATE_NAMES[int(dec.state)]
+    kind = lattice.KIND_NAMES[int(dec.kind)]
+    a = np.asarray(dec.anchor, np.float64)
+    anchor = None
+    if state == "COMMIT":
+        anchor = {"x": float(a[0]), "y": float(a[1]), "yaw_deg": float(np.rad2deg(a[2]))}
+    d = {"k": int(k)}
+    if segment is not None:
+        d["segment"] = int(segment)
+    d |= {
+        "t": float(t),
+        "state": state,
+        "anchor": anchor,
+        "symmetry": kind,
+        "tau": [float(v) for v in np.asarray(dec.tau)] if kind == "translation" else None,
+        "B1": int(dec.b1),
+        "B2": int(dec.b2),
+        "margin": int(dec.margin),
+    }
+    rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
+    d = record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+    if unique_llr is not None:
+        d["unique"] = unique_entry(float(dec.llr), unique_llr)
+    return d

@@ -32,11 +32,11 @@ import math
 from pathlib import Path
 
 import numpy as np
-import shapely
 
 from mfcl_jax.io.atomic import atomic_write
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.robot.status import status_line
+from mfcl_jax.robot.viz_messages import line_list, pose_msg, poses, ring_segments, stamp_of
 from mfcl_jax.robot.viz_schemas import SCHEMAS
 
 __all__ = ["FRAME", "TOPICS", "SCHEMAS", "VizWriter"]
@@ -53,52 +53,10 @@ TOPICS = {
     "/mfcl/decision": "mfcl.Decision",
 }
 _LEVEL = {"COMMIT": 2, "DEFER": 2, "AMBIGUOUS": 3}  # foxglove.LogLevel INFO, WARNING
-_LINE_LIST = 2
-
-
-def _stamp(ns: int) -> dict:
-    sec, nsec = divmod(ns, 10**9)
-    return {"sec": sec, "nsec": nsec}
-
-
-def _pose(x: float, y: float, yaw: float = 0.0) -> dict:
-    return {
-        "position": {"x": float(x), "y": float(y), "z": 0.0},
-        "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
-    }
-
-
-def _poses(rows) -> list[dict]:
-    return [_pose(x, y, yaw) for x, y, yaw in rows]
 
 
 def _xyyaw(p: dict) -> tuple[float, float, float]:
     return float(p["x"]), float(p["y"]), math.radians(float(p["yaw_deg"]))
-
-
-def _lines(segments, rgba, thickness: float) -> dict:
-    """One LINE_LIST primitive of ``segments (n, 2, 2)`` (scale-invariant: pixels)."""
-    pts = [{"x": float(x), "y": float(y), "z": 0.0} for x, y in np.reshape(segments, (-1, 2))]
-    return {
-        "type": _LINE_LIST,
-        "pose": _pose(0.0, 0.0),
-        "thickness": thickness,
-        "scale_invariant": True,
-        "points": pts,
-        "color": dict(zip("rgba", rgba, strict=True)),
-        "colors": [],
-        "indices": [],
-    }
-
-
-def _ring_segments(geoms) -> np.ndarray:
-    """The outline segments ``(n, 2, 2)`` of (multi)polygons, holes included."""
-    segs = [np.zeros((0, 2, 2))]
-    for p in shapely.get_parts(list(geoms)):
-        for ring in [p.exterior, *p.interiors]:
-            c = np.asarray(ring.coords, np.float64)[:, :2]
-            segs.append(np.stack([c[:-1], c[1:]], 1))
-    return np.concatenate(segs)
 
 
 def _place(P, X, Xs) -> np.ndarray:
@@ -185,14 +143,14 @@ class VizWriter:
 
     def _plan(self, ns: int) -> None:
         fp, off = self.floorplan, self._offset
-        rooms = _ring_segments([r.polygon for r in fp.rooms]) if fp.rooms else np.zeros((0, 2, 2))
+        rooms = ring_segments([r.polygon for r in fp.rooms]) if fp.rooms else np.zeros((0, 2, 2))
         doors = np.asarray([np.asarray(d.segment, np.float64) for d in fp.doors]).reshape(-1, 2, 2)
         texts = []
         for r in fp.rooms:
             p = r.polygon.representative_point()
             texts.append(
                 {
-                    "pose": _pose(p.x + off[0], p.y + off[1]),
+                    "pose": pose_msg(p.x + off[0], p.y + off[1]),
                     "billboard": True,
                     "font_size": 12.0,
                     "scale_invariant": True,
@@ -201,7 +159,7 @@ class VizWriter:
                 }
             )
         entity = {
-            "timestamp": _stamp(ns),
+            "timestamp": stamp_of(ns),
             "frame_id": FRAME,
             "id": "floorplan",
             "lifetime": {"sec": 0, "nsec": 0},
@@ -211,9 +169,9 @@ class VizWriter:
             "models": [],
             "texts": texts,
             "lines": [
-                _lines(fp.wall_faces + off, (0.9, 0.9, 0.9, 1.0), 2.0),
-                _lines(rooms + off, (0.3, 0.6, 1.0, 0.6), 1.0),
-                _lines(doors + off, (1.0, 0.2, 0.2, 1.0), 3.0),
+                line_list(fp.wall_faces + off, (0.9, 0.9, 0.9, 1.0), 2.0),
+                line_list(rooms + off, (0.3, 0.6, 1.0, 0.6), 1.0),
+                line_list(doors + off, (1.0, 0.2, 0.2, 1.0), 3.0),
             ],
         }
         self._put("/mfcl/plan", ns, {"deletions": [], "entities": [entity]})
@@ -240,7 +198,7 @@ class VizWriter:
         seg, X = int(getattr(result, "segment", 0)), np.asarray(result.X, np.float64)
         self._history.append((seg, X))
         pose = record.get("pose") if record["state"] == "COMMIT" else None
-        stamp, cloud = _stamp(ns), np.zeros((0, 2), "<f4")
+        stamp, cloud = stamp_of(ns), np.zeros((0, 2), "<f4")
         path = np.zeros((0, 3))
         if pose is not None:
             P = np.asarray(_xyyaw(pose))
@@ -254,7 +212,7 @@ class VizWriter:
             {
                 "timestamp": stamp,
                 "frame_id": FRAME,
-                "pose": _pose(*(_xyyaw(pose) if pose is not None else (0.0, 0.0, 0.0))),
+                "pose": pose_msg(*(_xyyaw(pose) if pose is not None else (0.0, 0.0, 0.0))),
                 "point_stride": 8,
                 "fields": [
                     {"name": "x", "offset": 0, "type": 7},
@@ -270,7 +228,7 @@ class VizWriter:
             ("/mfcl/path", path),
             ("/mfcl/alternatives", alts),
         ):
-            self._put(topic, ns, {"timestamp": stamp, "frame_id": FRAME, "poses": _poses(rows)})
+            self._put(topic, ns, {"timestamp": stamp, "frame_id": FRAME, "poses": poses(rows)})
         self._put(
             "/mfcl/state",
             ns,

@@ -11,7 +11,7 @@ one run so the ratios are comparable:
 * ``certify``: the whole ``certify.certify`` call (chain of scan-disjoint windows, fitted
   scoring, blocks, advantages) at one prefix.
 
-Inputs: the four-room row walked to and fro (``tests.test_rivals._row_walk``), the window
+Inputs: the four-room row walked to and fro (``sim.synthetic.row_walk``), the window
 evidence it builds (128 points per window) and ``C`` competitors (shifts of the truth by up to
 one room). Compile time is reported apart; run times are medians of repeated calls, as wall
 time and as process CPU time, with the 1-minute load average. Writes
@@ -25,7 +25,6 @@ import argparse
 import os
 import pathlib
 import platform
-import sys
 import time
 
 import jax
@@ -39,10 +38,9 @@ import pandas as pd  # noqa: E402
 
 from mfcl_jax import se2  # noqa: E402
 from mfcl_jax.decision import DecisionParams, certify  # noqa: E402
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from tests.test_decision_scenes import PITCH  # noqa: E402
-from tests.test_rivals import A, K, _row_walk  # noqa: E402
+from mfcl_jax.sim.synthetic import HIDDEN_ANCHOR as A  # noqa: E402
+from mfcl_jax.sim.synthetic import PITCH, row_walk  # noqa: E402
+from mfcl_jax.sim.synthetic import ROW_K as K  # noqa: E402
 
 
 def timed(fn, args, reps):
@@ -65,7 +63,7 @@ def main():
     ap.add_argument("--reps", type=int, default=20)
     ap.add_argument("--out", default="results/bench_certify.csv")
     a = ap.parse_args()
-    maps, run = _row_walk()
+    maps, run = row_walk()
     p = DecisionParams()
     X = jnp.asarray(run["X"])
     ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]

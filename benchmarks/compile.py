@@ -56,7 +56,7 @@ def one(name: str) -> dict:
     from mfcl_jax.decision import DecisionParams, layer, make_lanes, run_inputs
     from mfcl_jax.decision import runs as decision_runs
     from mfcl_jax.decision.lanes import COUNT_VARIANTS
-    from tests.test_decision_scenes import row_of_rooms
+    from mfcl_jax.sim.synthetic import row_of_rooms
 
     ours, baselines, search, batched = VARIANTS[name]
     fp = row_of_rooms()

@@ -22,7 +22,6 @@ import argparse
 import os
 import pathlib
 import platform
-import sys
 import time
 
 import jax
@@ -36,9 +35,7 @@ from mfcl_jax.decision import DecisionParams, make_lanes, run_inputs
 from mfcl_jax.decision import runs as decision_runs
 from mfcl_jax.decision.lanes import COUNT_VARIANTS
 from mfcl_jax.frontend.candidates import Candidates
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from tests.test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk  # noqa: E402
+from mfcl_jax.sim.synthetic import PITCH, evidence_at, row_of_rooms, walk  # noqa: E402
 
 
 def synth_batch(fp, R, K, J, T, seed=0):

@@ -7,8 +7,8 @@ import functools
 import jax
 import numpy as np
 
+from mfcl_jax.sim.synthetic import PITCH, make_run, row_of_rooms, shift, walk
 from tests._layer import J, K, evaluate_runs, lanes_of, maps_of
-from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, shift, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 # r1 -> r2 -> r1 -> r0 -> r3: the shifted aliases die only once both row ends are visited.

@@ -1,4 +1,4 @@
-"""The decision layer on synthetic runs (``tests.test_decision_scenes.make_run`` dicts):
+"""The decision layer on synthetic runs (``sim.synthetic.make_run`` dicts):
 ``vmap`` over runs of ``lax.scan(layer.update)``, compiled once per lane set for one padded
 map shape, as ``decision.runs`` does for real batches.
 
@@ -19,9 +19,10 @@ from mfcl_jax.decision.lanes import COUNT_VARIANTS
 from mfcl_jax.decision.layer import WindowEvidence
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.runs import scan_runs
+from mfcl_jax.sim.synthetic import GRID, N_ROOMS
 
-K, J, T, STEP, GRID = 8, 16, 192, 48, (340, 340)
-N_ROOMS, RUNS = 6, 4  # room capacity of every test building; runs per compiled call
+K, J, T, STEP = 8, 16, 192, 48
+RUNS = 4  # runs per compiled call (GRID, N_ROOMS: every test building's, sim.synthetic)
 CAPS = Caps(windows=K, cands=J, traj=T, step=STEP, evidence=128)
 
 

@@ -31,7 +31,7 @@ GROUPS = {
     "decision": (
         "test_decision_layer", "test_decision_invariance", "test_decision_stepwise",
         "test_decision_consensus", "test_decision_rotation", "test_decision_machine",
-        "test_decision_gate", "test_decision_drift", "test_decision_scenes", "test_uniqueness",
+        "test_decision_gate", "test_decision_drift", "test_uniqueness",
         "test_rivals", "test_path_llr",
     ),
     "robot": (

@@ -13,9 +13,9 @@ import numpy as np
 
 from mfcl_jax import se2
 from mfcl_jax.decision import DecisionParams
+from mfcl_jax.sim.synthetic import evidence_at, walk
 from tests._decision_row import FIELDS, OURS, PATH, ROW_FP, A, ours, probe_cands, run_all
 from tests._layer import J, K
-from tests.test_decision_scenes import evidence_at, walk
 
 DRIFT = np.array([0.9, -0.5, np.deg2rad(3.0)])  # anchor change over the whole run
 

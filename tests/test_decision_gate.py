@@ -11,7 +11,7 @@ from mfcl_jax.decision import gate, lattice
 from mfcl_jax.decision.anchors import candidate_anchors, sanitize
 from mfcl_jax.decision.consensus import leader_groups
 from mfcl_jax.decision.maps import decision_maps
-from tests.test_decision_scenes import PITCH, row_of_rooms, three_rooms, walk
+from mfcl_jax.sim.synthetic import PITCH, row_of_rooms, three_rooms, walk
 
 ROW = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms()))
 CLOSED = jax.tree.map(jnp.asarray, decision_maps(row_of_rooms(closed=(2,))))

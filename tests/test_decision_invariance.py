@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mfcl_jax import se2
+from mfcl_jax.sim.synthetic import row_of_rooms
 from tests._decision_row import (
     NAMES,
     A,
@@ -21,7 +22,6 @@ from tests._decision_row import (
     run_of,
 )
 from tests._layer import J, K, maps_of
-from tests.test_decision_scenes import row_of_rooms
 
 
 @settings(max_examples=6)

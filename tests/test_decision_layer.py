@@ -11,6 +11,7 @@ import numpy as np
 from mfcl_jax import se2
 from mfcl_jax.decision import REASONS, DecisionParams, sanitize, to_frame
 from mfcl_jax.decision.runs import TRACES
+from mfcl_jax.sim.synthetic import PITCH, make_run, shift, three_rooms, walk
 from tests._decision_row import (
     NAMES,
     OURS,
@@ -24,7 +25,6 @@ from tests._decision_row import (
     run_of,
 )
 from tests._layer import J, K, T, lanes_of, maps_of
-from tests.test_decision_scenes import PITCH, make_run, shift, three_rooms, walk
 
 
 def test_lattice_ambiguous_then_commit_when_aliases_become_infeasible():

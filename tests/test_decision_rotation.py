@@ -25,9 +25,9 @@ from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.symmetry import rotational_motions
 from mfcl_jax.floorplan import Door, Floorplan, Room
 from mfcl_jax.robot.records import record_of
+from mfcl_jax.sim.synthetic import WT, make_run, row_of_rooms, three_rooms, walk
 from tests._decision_row import NAMES, ours
 from tests._layer import CAPS, J, K, evaluate_runs, evidence_of, lanes_of, maps_of, step, window
-from tests.test_decision_scenes import WT, make_run, row_of_rooms, three_rooms, walk
 
 G = np.array([22.0, 8.0, np.pi])  # the building's self-motion: half turn about (11, 4)
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L

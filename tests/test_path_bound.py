@@ -10,13 +10,13 @@ import math
 import jax
 import numpy as np
 import pytest
-from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax.decision import rivals
 from mfcl_jax.floorplan.raster import UNOBSERVED
 from mfcl_jax.frontend import path_bound as pb
 from mfcl_jax.frontend import path_certify as pc
 from mfcl_jax.frontend import path_llr
+from mfcl_jax.sim.synthetic import PITCH, evidence_at, row_of_rooms, walk
 
 
 def _case(fp, points, n_scans=8, outside=1.0):

@@ -5,12 +5,12 @@ the building explaining it as well as the truth."""
 import jax
 import numpy as np
 import pytest
-from test_decision_scenes import PITCH, evidence_at, row_of_rooms, walk
 
 from mfcl_jax import se2
 from mfcl_jax.decision import drift, rivals
 from mfcl_jax.decision import uniqueness as U
 from mfcl_jax.frontend import path_llr
+from mfcl_jax.sim.synthetic import PITCH, evidence_at, row_of_rooms, walk
 
 # the kernels jitted once (run op by op they compile each operation per shape: hundreds)
 evidence = jax.jit(path_llr.path_evidence)

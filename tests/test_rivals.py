@@ -6,18 +6,23 @@ import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import REASONS, DecisionParams, decision_maps, layer
-from mfcl_jax.decision.maps import pad_maps
+from mfcl_jax.decision import REASONS, DecisionParams, layer
 from mfcl_jax.decision.rivals import RivalParams, image_size, path_cloud, rival_fields, search
-from tests._layer import CAPS, GRID, N_ROOMS, evidence_of, lanes_of, step, window
-from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, three_rooms, walk
+from mfcl_jax.sim.synthetic import (
+    HIDDEN_ANCHOR,
+    PITCH,
+    ROW_J,
+    ROW_K,
+    make_run,
+    row_of_rooms,
+    row_walk,
+    three_rooms,
+    truth_only,
+    walk,
+)
+from tests._layer import CAPS, evidence_of, lanes_of, step, window
 
-A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
-K, J = 8, 16
-
-
-def truth_only(k, y):
-    return [(y, 1.0)]
+A, K, J = HIDDEN_ANCHOR, ROW_K, ROW_J
 
 
 def test_path_cloud_places_each_window_by_its_odometry_pose():
@@ -72,26 +77,13 @@ def _decide(run, maps, rival=None, found_at=None, params=None):
     return jax.tree.map(lambda *x: np.stack(x), *out)
 
 
-def _row_walk():
-    """Four identical rooms in a row (no congruence probe), walked to and fro along y = 2.5
-    in the first two: ``(maps, run)``."""
-    fp = row_of_rooms()
-    # the tests' grid and room capacity: the robot's step compiled for test_decision_rotation's
-    # walks serves these too (one program for the worker)
-    m = pad_maps(decision_maps(fp, min_iou=1.01), GRID, N_ROOMS, n_motions=8, n_offsets=32)
-    maps = jax.tree.map(jnp.asarray, m)
-    run = make_run(walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]]), A, K, truth_only, J=J,
-                   fp=fp)  # fmt: skip
-    return maps, run
-
-
 def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
     """Four identical rooms in a row, walked in the first two only, with the congruence
     check off (no probe alias): every window's candidate is the truth and the layer commits.
     The one-room shift of the path is nearly as good an explanation (the row's end is seen
     only through the aligned doors); given as a rival found at prefix k, it blocks the commit
     from k on (AMBIGUOUS translation, period = the room pitch), not before."""
-    maps, run = _row_walk()
+    maps, run = row_walk()
     # Not quite "neither end": along y = 2.5 the robot sees the row's end wall through the
     # aligned doors, and the certification finds the shift 0.03-0.06 worse in every window
     # (at the default margin 0.05 it is ruled out: see the next test). The subject
@@ -122,7 +114,7 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     margin once rays carry free-space samples."""
     from mfcl_jax.decision import certify
 
-    maps, run = _row_walk()
+    maps, run = row_walk()
     X = jnp.asarray(run["X"])
     ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]
     off = se2.compose(A, np.array([0.04, -0.03, np.deg2rad(0.4)]))
@@ -156,7 +148,7 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     and never toward favouring it (``min_adv`` stays the whole-window test)."""
     from mfcl_jax.decision import certify
 
-    maps, run = _row_walk()
+    maps, run = row_walk()
     X = jnp.asarray(run["X"])
     ev = [jnp.asarray(run[f]) for f in ("ev_points", "ev_origins", "ev_mask")]
     bounds = (jnp.asarray(run["window_start"]), jnp.asarray(run["window_end"]))

@@ -10,8 +10,8 @@ from mfcl_jax import se2
 from mfcl_jax.decision import decision_maps, layer
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.rivals import image_size, rival_fields
+from mfcl_jax.sim.synthetic import PITCH, make_run, row_of_rooms, walk
 from tests._layer import CAPS, GRID, evidence_of, lanes_of, stepwise
-from tests.test_decision_scenes import PITCH, make_run, row_of_rooms, walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 K, J = 8, 16

@@ -1,4 +1,10 @@
-"""Synthetic floor plans and candidate sets shared by the decision-layer tests."""
+"""Synthetic floor plans and candidate sets: the decision layer exercised without the
+front-end, by the tests and the speed scripts alike (rows of identical rooms, walks through
+them, windows whose candidates a function gives, the scans' evidence drawn from the plan).
+
+``GRID`` and ``N_ROOMS`` are the one grid and room capacity every synthetic building is
+padded to, so that one compiled program serves them all; ``row_walk`` is the four-room row
+walked to and fro in its first two rooms (no congruence probe)."""
 
 import numpy as np
 from shapely.geometry import box
@@ -132,3 +138,31 @@ def make_run(traj_b, anchor, n_windows, cand_fn, J=8, fp=None):
 
 def shift(pose, dx, dy=0.0):
     return np.asarray(pose, float) + np.array([dx, dy, 0.0])
+
+
+GRID, N_ROOMS = (340, 340), 6  # the grid and room capacity of every synthetic building
+HIDDEN_ANCHOR = np.array([1.0, -2.0, 0.4])  # the hidden ^B T_L of row_walk
+ROW_K, ROW_J = 8, 16  # row_walk's windows and candidate capacity
+
+
+def truth_only(k, y):
+    """A window's candidates: the true pose alone, score 1."""
+    return [(y, 1.0)]
+
+
+def row_walk():
+    """Four identical rooms in a row (no congruence probe), walked to and fro along y = 2.5
+    in the first two: ``(maps, run)``, the maps padded to ``GRID`` and ``N_ROOMS`` (one
+    compiled step serves every synthetic building)."""
+    import jax
+    import jax.numpy as jnp
+
+    from mfcl_jax.decision import decision_maps
+    from mfcl_jax.decision.maps import pad_maps
+
+    fp = row_of_rooms()
+    m = pad_maps(decision_maps(fp, min_iou=1.01), GRID, N_ROOMS, n_motions=8, n_offsets=32)
+    maps = jax.tree.map(jnp.asarray, m)
+    path = walk([[10, 2.5], [18, 2.5], [10, 2.5], [18, 2.5]])
+    run = make_run(path, HIDDEN_ANCHOR, ROW_K, truth_only, J=ROW_J, fp=fp)
+    return maps, run

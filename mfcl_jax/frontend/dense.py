@@ -35,7 +35,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mfcl_jax import se2
 from mfcl_jax.frontend import path_search as ps
 
 __all__ = ["DenseFields", "dense_fields", "plan_directions", "headings", "peaks"]
@@ -138,10 +137,13 @@ def headings(lines, dense: DenseFields, p):
     ok = s_ok[:, None] & dense.dir_ok[None, :]
     yaw = jnp.stack([yaw, yaw + jnp.pi], -1).reshape(-1)
     ok = jnp.stack([ok, ok], -1).reshape(-1)
-    yaw = se2.wrap(yaw)
+    # half-open [-pi, pi) here, not se2.wrap: a heading of exactly pi (a wall direction plus
+    # pi) keeps coming out as -pi; atan2 gives +pi there, which changes which candidates
+    # survive (with se2.wrap here two baseline runs of the study decide otherwise)
+    yaw = jnp.mod(yaw + jnp.pi, 2 * jnp.pi) - jnp.pi
     # A heading within 3 deg of an earlier valid one is a duplicate (perpendicular walls of a
     # rectilinear plan give each heading several times); ``_coarse`` skips it.
-    dd = jnp.abs(se2.angle_diff(yaw[:, None], yaw[None, :]))
+    dd = jnp.abs(jnp.mod(yaw[:, None] - yaw[None, :] + jnp.pi, 2 * jnp.pi) - jnp.pi)
     m = yaw.shape[0]
     earlier = jnp.arange(m)[None, :] < jnp.arange(m)[:, None]
     dup = jnp.any(earlier & ok[None, :] & (dd < math.radians(3.0)), axis=1)

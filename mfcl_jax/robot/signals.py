@@ -71,15 +71,18 @@ def checkpoint() -> None:
 
 
 class StopSignals:
-    """While entered: SIGINT and SIGTERM raise ``Stopped`` in the main thread (armed until
-    ``run`` returns or ``writing`` starts; later signals are remembered in ``received``
-    only). Outside the main thread (where Python cannot set handlers) it does nothing, and a
-    signal the process was started ignoring (a background job's SIGINT) stays ignored; the
-    previous handlers come back on exit."""
+    """While entered: SIGINT and SIGTERM raise ``Stopped`` in the main thread, once (armed
+    until the first stop, ``run``'s end or ``writing``; a later signal is remembered in
+    ``received`` only). A stop not seen by the run yet (its exception dropped by Python, or a
+    signal during a mid-run ``writing``) is owed: ``checkpoint`` and ``arm`` raise it.
+    Outside the main thread (where Python cannot set handlers) it does nothing, and a signal
+    the process was started ignoring (a background job's SIGINT) stays ignored; the previous
+    handlers come back on exit."""
 
     def __init__(self):
         self.received: int | None = None
         self._armed = False
+        self._owed = False
         self._old: dict = {}
 
     def __enter__(self) -> StopSignals:
@@ -102,27 +105,27 @@ class StopSignals:
     def _handle(self, signum, frame) -> None:
         if self.received is None:
             self.received = int(signum)
+        self._owed = True  # until the run sees it
         if self._armed:
+            self._armed = False
             raise Stopped(self.received)
 
     def check(self) -> None:
-        """``checkpoint`` for this run."""
-        if self._armed and self.received is not None:
+        """``checkpoint`` for this run: raises a stop the run has not seen."""
+        if self._owed:
+            self._owed = self._armed = False
             raise Stopped(self.received)
 
     def run(self, work) -> Stopped | KeyboardInterrupt | None:
         """Calls ``work()``; returns the stop that ended it (None when it ended by itself and
-        no signal arrived). Exceptions other than a stop propagate."""
+        no signal arrived: a stop whose exception was dropped still counts). Exceptions other
+        than a stop propagate."""
         try:
-            try:
-                work()
-            except KeyboardInterrupt as e:
-                self._armed = False
-                return e
-        except KeyboardInterrupt as e:  # a second signal while the first was being caught
-            self._armed = False
+            work()
+        except KeyboardInterrupt as e:
+            self._owed = self._armed = False
             return e
-        self._armed = False
+        self._owed = self._armed = False
         return Stopped(self.received) if self.received is not None else None
 
     def arm(self) -> None:

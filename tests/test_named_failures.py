@@ -108,11 +108,9 @@ def _stop_inside_gc():
     gc.collect()
 
 
-def test_a_stop_dropped_by_python_still_stops_the_run(monkeypatch):
+def test_a_stop_dropped_by_python_still_stops_the_run(capfd):
     from mfcl_jax.robot.progress import Progress
 
-    dropped = []
-    monkeypatch.setattr(sys, "unraisablehook", lambda u: dropped.append(u.exc_type))
     reached = []
 
     def work():
@@ -123,14 +121,36 @@ def test_a_stop_dropped_by_python_still_stops_the_run(monkeypatch):
 
     with StopSignals() as signals:
         stop = signals.run(work)
-    assert dropped == [Stopped]  # Python did drop it
-    assert isinstance(stop, Stopped) and stop.signum == signal.SIGINT
+    assert signals.dropped == 1  # Python did drop it ...
+    assert isinstance(stop, Stopped) and stop.signum == signal.SIGINT  # ... and it stopped
     assert reached == ["after the lost stop"]
 
-    dropped.clear()
     with StopSignals() as signals:  # no checkpoint after it: the run ends, reported stopped
         stop = signals.run(_stop_inside_gc)
-    assert dropped == [Stopped] and isinstance(stop, Stopped)
+    assert signals.dropped == 1 and isinstance(stop, Stopped)
+    assert "Exception ignored" not in capfd.readouterr().err  # not shown as an error
+
+
+def test_a_stop_never_splits_an_atomic_step():
+    """A window's record is kept and its line shown, or neither: a signal during the step is
+    raised right after it (``signals.atomic``)."""
+    import os
+    import time
+
+    from mfcl_jax.robot.signals import atomic
+
+    done = []
+
+    def work():
+        with atomic():
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)  # the handler runs here: remembered, not raised
+            done.append("the whole step")
+        done.append("the next step")
+
+    with StopSignals() as signals:
+        stop = signals.run(work)
+    assert done == ["the whole step"] and stop.signum == signal.SIGTERM
 
 
 def test_a_signal_during_shutdown_exits_with_its_status_and_no_traceback():

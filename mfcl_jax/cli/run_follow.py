@@ -84,6 +84,7 @@ def _run_follow(args, progress, follower, plan, records: list, state: dict) -> N
     from mfcl_jax.floorplan.load import load_floorplan
     from mfcl_jax.io.decisions import decision_line
     from mfcl_jax.robot.localizer import Localizer
+    from mfcl_jax.robot.signals import atomic
     from mfcl_jax.robot.viz import VizWriter
 
     opts = dict(free_thresh=args.free_thresh, occupied_thresh=args.occupied_thresh)
@@ -97,13 +98,14 @@ def _run_follow(args, progress, follower, plan, records: list, state: dict) -> N
     splits = Splits(loc.params.window, folder)
     first = "window 1: waiting for a complete window, then " + COMPILING
     for r in progress.track(loc.follow(follower.prefixes()), None, first):
-        records.append(r.record(fp.offset))
-        if state["viz"] is not None:
-            state["viz"] = viz_add(state["viz"], r, records[-1])
-            if state["viz"] is None:
-                state["dropped"] = True
-        sys.stdout.write(decision_line(records[-1]) + "\n")
-        sys.stdout.flush()
-        split_note(splits.note(follower.sequence, r.k, r.segment, r.t, r.first, r.last))
-        if not args.quiet:
-            progress.echo(r.status(fp.offset), file=sys.stderr)
+        with atomic():  # a window is kept and streamed, or neither
+            records.append(r.record(fp.offset))
+            if state["viz"] is not None:
+                state["viz"] = viz_add(state["viz"], r, records[-1])
+                if state["viz"] is None:
+                    state["dropped"] = True
+            sys.stdout.write(decision_line(records[-1]) + "\n")
+            sys.stdout.flush()
+            split_note(splits.note(follower.sequence, r.k, r.segment, r.t, r.first, r.last))
+            if not args.quiet:
+                progress.echo(r.status(fp.offset), file=sys.stderr)

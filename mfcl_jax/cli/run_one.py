@@ -52,6 +52,7 @@ def _run_one(args, folders, progress, src, records: list, state: dict) -> None:
     from mfcl_jax.cli.inputs import load_input
     from mfcl_jax.cli.segments import Splits
     from mfcl_jax.robot.localizer import Localizer
+    from mfcl_jax.robot.signals import atomic
     from mfcl_jax.robot.viz import VizWriter
 
     with progress.stage(f"loading {src}"):
@@ -76,10 +77,11 @@ def _run_one(args, folders, progress, src, records: list, state: dict) -> None:
     splits = Splits(loc.params.window, seq.source)
     first = f"window 1 of {n}: {COMPILING}"
     for r in progress.track(loc.run(seq), n, first):
-        records.append(r.record(fp.offset))
-        if viz is not None:
-            viz.add(r, records[-1])
-        split_note(splits.note(seq, r.k, r.segment, r.t, r.first, r.last))
-        if not args.quiet:
-            progress.echo(r.status(fp.offset))
-            sys.stdout.flush()
+        with atomic():  # a window is kept and shown, or neither
+            records.append(r.record(fp.offset))
+            if viz is not None:
+                viz.add(r, records[-1])
+            split_note(splits.note(seq, r.k, r.segment, r.t, r.first, r.last))
+            if not args.quiet:
+                progress.echo(r.status(fp.offset))
+                sys.stdout.flush()

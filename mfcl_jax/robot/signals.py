@@ -5,12 +5,14 @@ is written (atomically, like a finished run's output).
 ``StopSignals.run(work)`` runs the work with SIGINT and SIGTERM turned into ``Stopped`` (a
 ``KeyboardInterrupt``) raised where the run is, and returns the stop (or None). Python drops
 an exception raised inside a garbage-collector callback ("Exception ignored in ..."), which
-a signal during JAX's compilation can hit: the signal is remembered, raised again at the next
-``checkpoint()`` (every progress stage and window passes one), and a run that still ends
-normally is reported as stopped by it all the same. Once the run writes its outputs
-(``writing``), a signal is only remembered, so a second Ctrl-C or a SIGTERM sent after a
-SIGINT cannot cut a write short; after the command, a signal ends the process at once with
-its status (``exit_on_signal``: no traceback from the interpreter's shutdown). Exit statuses:
+a signal during JAX's compilation can hit: the signal is remembered (and not printed as an
+error), raised again at the next ``checkpoint()`` (every progress stage and window passes
+one), and a run that still ends normally is reported as stopped by it all the same. Once the
+run writes its outputs (``writing``), a signal is only remembered, so a second Ctrl-C or a
+SIGTERM sent after a SIGINT cannot cut a write short; after the command, a signal ends the
+process at once with its status (``exit_on_signal``: no traceback from the interpreter's
+shutdown; in the interpreter's very last moments the signal's default action ends it, which a
+shell reports as the same status). Exit statuses:
 ``128 + signal`` (130 for Ctrl-C, 143 for SIGTERM), as a shell reports a process the signal
 ended; ``--follow``, which runs until it is told to stop, exits 0.
 """
@@ -70,6 +72,21 @@ def checkpoint() -> None:
         _ACTIVE[-1].check()
 
 
+@contextmanager
+def atomic():
+    """A step a stop must not split (a window's record kept and its line shown): a signal
+    during it is raised right after it."""
+    s = _ACTIVE[-1] if _ACTIVE else None
+    if s is None or not s._armed:
+        yield
+        return
+    s._armed = False
+    try:
+        yield
+    finally:
+        s.arm()
+
+
 class StopSignals:
     """While entered: SIGINT and SIGTERM raise ``Stopped`` in the main thread, once (armed
     until the first stop, ``run``'s end or ``writing``; a later signal is remembered in
@@ -81,9 +98,11 @@ class StopSignals:
 
     def __init__(self):
         self.received: int | None = None
+        self.dropped = 0  # stops whose exception Python dropped (then owed)
         self._armed = False
         self._owed = False
         self._old: dict = {}
+        self._hook = None
 
     def __enter__(self) -> StopSignals:
         if threading.current_thread() is threading.main_thread():
@@ -92,12 +111,23 @@ class StopSignals:
                     self._old[s] = signal.signal(s, self._handle)
         self._armed = True
         _ACTIVE.append(self)
+        self._hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         return self
+
+    def _unraisable(self, u) -> None:
+        """A stop dropped by Python (raised in a callback) is owed, not printed as an error."""
+        if u.exc_type is not None and issubclass(u.exc_type, Stopped):
+            self.dropped += 1
+            return
+        self._hook(u)
 
     def __exit__(self, *exc) -> None:
         self._armed = False
         if self in _ACTIVE:
             _ACTIVE.remove(self)
+        if self._hook is not None and sys.unraisablehook == self._unraisable:
+            sys.unraisablehook = self._hook
         for s, old in self._old.items():
             signal.signal(s, old)
         self._old.clear()

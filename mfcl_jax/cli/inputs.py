@@ -62,14 +62,13 @@ def planar_params(args, mount=None):
     return PlanarParams(dim=args.input_dim, band=band, mount=mount)
 
 
-DATASET_PARTS = ("odometry.tum", "groundtruth.tum", "scans")
-
-
 def dataset_folders(args) -> list[Path]:
     """The dataset folders named: each DATASET, or the dataset folders inside a single
     folder that has no ``odometry.tum`` itself (sorted by name): every sub-folder holding a
     part of a dataset (``odometry.tum``, ``groundtruth.tum`` or ``scans/``), so that one
     lacking a part is named and counted with the bad inputs, never silently left out."""
+    from mfcl_jax.sources.dataset import DATASET_PARTS
+
     folders = list(args.dataset)
     if len(folders) == 1 and folders[0].is_dir() and not (folders[0] / "odometry.tum").exists():
         inner = sorted(p for p in folders[0].iterdir()

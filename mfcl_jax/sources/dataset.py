@@ -28,9 +28,11 @@ from mfcl_jax.io.timesync import odometry_at, poses_at
 from mfcl_jax.io.tum import read_tum
 from mfcl_jax.io.units import check_metres, check_plan_scale, check_some_points
 
-__all__ = ["Dataset", "load_dataset", "FLOORPLAN_NAMES"]
+__all__ = ["Dataset", "load_dataset", "FLOORPLAN_NAMES", "DATASET_PARTS"]
 
 FLOORPLAN_NAMES = ("floorplan.geojson", "floorplan.json", "floorplan.ifc", "floorplan.yaml")
+# what a dataset folder holds besides its floor plan (floorplan.* and a ROS map's image)
+DATASET_PARTS = ("odometry.tum", "groundtruth.tum", "scans")
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ from mfcl_jax.io.atomic import check_output, publish_mode
 from mfcl_jax.io.errors import DataError
 from mfcl_jax.io.pcd import write_pcd
 from mfcl_jax.io.tum import format_time, write_tum
-from mfcl_jax.sources.dataset import FLOORPLAN_NAMES
+from mfcl_jax.sources.dataset import DATASET_PARTS
 
 __all__ = ["write_dataset"]
 
@@ -119,8 +119,7 @@ def _check_replaceable(folder: Path) -> None:
             f"{folder}: overwrite replaces a dataset folder, and this one holds no odometry.tum "
             f"and no scans/ ({len(names)} entries, e.g. {sorted(names)[:3]}); it was left as it is"
         )
-    known = {"odometry.tum", "groundtruth.tum", "scans", *FLOORPLAN_NAMES}
-    other = sorted(n for n in names - known if not n.startswith("floorplan."))
+    other = sorted(n for n in names - set(DATASET_PARTS) if not n.startswith("floorplan."))
     if other:
         raise DataError(
             f"{folder}: overwrite replaces a dataset folder, and this one also holds {other[:3]}"

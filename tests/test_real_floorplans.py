@@ -25,8 +25,24 @@ def _edges(fp) -> int:
     return int((fp.adjacency.sum() - len(fp.rooms)) // 2)
 
 
+def test_duplex_without_a_storey_is_every_storey_side_by_side():
+    fp = load_floorplan(DUPLEX)  # default: every storey with walls and spaces
+    st = fp.storeys
+    assert st.names == ("Level 1", "Level 2")  # T/FDN and Roof have no spaces / walls
+    assert list(st.tile) == [0, 1]  # the two storeys differ: each has its place
+    l1, l2 = load_ifc(DUPLEX, storey="Level 1"), load_ifc(DUPLEX, storey="Level 2")
+    assert len(fp.rooms) == len(l1.rooms) + len(l2.rooms)
+    assert all(n.startswith(("Level 1/", "Level 2/")) for n in fp.room_names)
+    # a place on Level 2 maps back to Level 2's own frame
+    c = np.asarray(l2.room_centroids[0])
+    x, y = st.place[1][:2]  # the motion is a pure shift here (no turn)
+    assert st.place[1][2] == 0
+    assert st.tile_at(c[0] + x, c[1] + y) == 1
+    assert np.allclose(st.to_storey(1, (c[0] + x, c[1] + y, 0.3))[:2], c)
+
+
 def test_duplex_level1():
-    fp = load_floorplan(DUPLEX)  # default: the lowest storey with walls and spaces
+    fp = load_floorplan(DUPLEX, storey="Level 1")
     assert fp.name.endswith("Level 1")
     assert len(fp.rooms) == 10  # the 10 IfcSpace of Level 1
     assert 110 < fp.room_areas.sum() < 140

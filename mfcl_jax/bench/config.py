@@ -35,7 +35,7 @@ PROCEDURAL = ("plain", "bays", "offices", "corridor", "hall", "ring", "rotationa
 IFC_MODELS = {
     "office_a": ("ifc/Office_A_20110811.ifc", "Level 1"),
     "duplex": ("ifc/Duplex_A_20110907_Architecture.ifc", "Level 1"),
-    "fzk_haus": ("ifc/AC20-FZK-Haus.ifc", None),
+    "fzk_haus": ("ifc/AC20-FZK-Haus.ifc", "Erdgeschoss"),
 }
 LOGS = ("intel", "freiburg-101", "orebro", "seattle")
 # axis -> levels (the first level of the numeric axes is the nominal setting)

@@ -43,14 +43,16 @@ __all__ = [
 ]
 
 # Kind codes of AMBIGUOUS. Rotation classes come from the alias probe (quarter-turn
-# self-motions of the building, see ``symmetry``); the mirror class is reserved (not detected).
-KIND_NONE, TRANSLATION, MULTIMODAL, ROTATION, MIRROR = 0, 1, 2, 3, 4
+# self-motions of the building, see ``symmetry``); the mirror class is reserved (not detected);
+# the storey class marks a place shared by congruent storeys (``decision.storey``).
+KIND_NONE, TRANSLATION, MULTIMODAL, ROTATION, MIRROR, STOREY = 0, 1, 2, 3, 4, 5
 KIND_NAMES = {
     KIND_NONE: None,
     TRANSLATION: "translation",
     MULTIMODAL: "multimodal",
     ROTATION: "rotation",
     MIRROR: "mirror",
+    STOREY: "storey",
 }
 
 

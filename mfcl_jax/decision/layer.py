@@ -12,7 +12,8 @@ certification where some lane needs it (``rule.needs_certificate``, through ``sp
 a batch pays only for the windows that need one), each lane's rule (``rule.finish``) and
 commit machine (``machine.step``), the check of every reported commit against the window's
 last metre of scans (``drift``; off where ``init`` has no plan fields or the window no end
-sample), and the baselines (``baselines.step``). Where the primary
+sample), the storey check (``storey``: no commit on a place several storeys share), and the
+baselines (``baselines.step``). Where the primary
 lane is about to enter COMMIT (and its run has searches left) the path is searched for rivals
 (``rivals.search``) and the window is decided again with them.
 
@@ -27,7 +28,17 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import baselines, certify, drift, gate, machine, rivals, rule, uniqueness
+from mfcl_jax.decision import (
+    baselines,
+    certify,
+    drift,
+    gate,
+    machine,
+    rivals,
+    rule,
+    storey,
+    uniqueness,
+)
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import (
     Caps,
@@ -276,6 +287,8 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
         v = drift.check(world.fields, poses, out.state == COMMIT, ev.end_points, ev.end_mask)
         held, out = machine.leave_drifted(held, out, v)
+    # a commit on a place of several congruent storeys names no storey
+    held, out = storey.leave_shared(world.maps, held, out, ev.traj, ev.traj_mask, ev.X)
     n_rejected = state.n_rejected + bad
     out = Decision(**{**out.__dict__, "searched": jnp.broadcast_to(searched, out.state.shape),
                       "n_rejected": jnp.broadcast_to(n_rejected, out.state.shape),

@@ -85,6 +85,9 @@ class DecisionMaps:
             threshold asked for (``decision_maps(min_iou=...)``; a lane picks one).
         sdf4, pen4: ``(H + 1, W + 1, 4)`` the verification fields (``frontend.verify``:
             signed wall distance and free-space penalty, ``stack4`` layout).
+        shared: ``(R + 1,)`` bool: the room lies on a place that stands for several congruent
+            storeys (``floorplan.storeys``), where a commit cannot name the storey
+            (``decision.storey``); all False for one storey.
         res: cell size (m).
     """
 
@@ -94,6 +97,7 @@ class DecisionMaps:
     sym: Symmetry
     sdf4: jax.Array
     pen4: jax.Array
+    shared: jax.Array
     res: float = 0.10
 
     @property
@@ -107,7 +111,7 @@ class DecisionMaps:
 
 jax.tree_util.register_dataclass(
     DecisionMaps,
-    data_fields=["origin", "label", "adjacency", "sym", "sdf4", "pen4"],
+    data_fields=["origin", "label", "adjacency", "sym", "sdf4", "pen4", "shared"],
     meta_fields=["res"],
 )
 
@@ -212,7 +216,19 @@ def decision_maps(
     fp = None if isinstance(source, Rasters) else source
     sdf, pen = verify.surface_fields(fp, r, CERT_SIGMA_FREE)
     sdf4, pen4 = verify.stack4(sdf, verify.FAR), verify.stack4(pen, float(r.outside))
-    return DecisionMaps(origin, label, adj, sym, sdf4, pen4, float(r.res))
+    return DecisionMaps(origin, label, adj, sym, sdf4, pen4, _shared(fp, n), float(r.res))
+
+
+def _shared(fp, n: int) -> np.ndarray:
+    """``(n + 1,)``: rooms on a tile of several congruent storeys (``DecisionMaps.shared``)."""
+    out = np.zeros(n + 1, bool)
+    st = getattr(fp, "storeys", None)
+    if st is not None:
+        for i, room in enumerate(fp.rooms):
+            x, y = room.polygon.representative_point().coords[0]
+            t = st.tile_at(x, y)
+            out[i] = t >= 0 and st.shared(t)
+    return out
 
 
 def pad_maps(
@@ -242,6 +258,8 @@ def pad_maps(
     adj[R, :n] = a[n, :n]
     adj[R, R] = True
     adj[np.arange(R), np.arange(R)] = True
+    shared = np.zeros(R + 1, bool)
+    shared[:n] = np.asarray(m.shared)[:n]
     s = jax.tree.map(np.asarray, m.sym)
     M = s.motions.shape[1] if n_motions is None else n_motions
     P = s.offsets.shape[1] if n_offsets is None else n_offsets
@@ -260,7 +278,7 @@ def pad_maps(
     # off the grid the penalty is the plan's outside, the fill stack4 put past the last cell
     pen4 = np.asarray(m.pen4)
     pen4 = np.pad(pen4, pad4, constant_values=float(pen4[-1, -1, 3]))
-    return DecisionMaps(np.asarray(m.origin), label, adj, sym, sdf4, pen4, m.res)
+    return DecisionMaps(np.asarray(m.origin), label, adj, sym, sdf4, pen4, shared, m.res)
 
 
 def stack_maps(maps: list[DecisionMaps]) -> DecisionMaps:

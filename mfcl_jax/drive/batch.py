@@ -196,12 +196,12 @@ class _Class:
             for i, w in zip(idx, wins, strict=True):
                 if not len(w):
                     continue
-                res, offset = done[i], floorplans[i].offset
+                res, offset, st = done[i], floorplans[i].offset, floorplans[i].storeys
                 for k in range(len(w)):
                     d = jax.tree.map(lambda a, r=r, k=k: a[r, k, 0], dec)
                     seg = int(w.segments[w.bounds[k, 0]])  # k + 1: over the whole recording
                     res.records.append(record_of(d, k + 1, float(w.t[k]), w.X[k], w.X_input[k],
-                                                 offset, seg, params.unique_llr))  # fmt: skip
+                                                 offset, seg, params.unique_llr, st))  # fmt: skip
                     sub = int(batch.runs.submap[r, k])
                     thin = f" rethinned voxel={w.voxel[k]:.2f}" if W.rethinned(w)[k] else ""
                     res.details.append(f"pts={len(w.points[k])}{thin} cands={int(valid[sub])}")

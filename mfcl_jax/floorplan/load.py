@@ -12,7 +12,7 @@ from pathlib import Path
 
 from mfcl_jax.floorplan.model import Floorplan, FloorplanError, FloorplanWarning
 
-__all__ = ["load_floorplan", "floorplan_files", "FLOORPLAN_SUFFIXES"]
+__all__ = ["load_floorplan", "load_building", "floorplan_files", "FLOORPLAN_SUFFIXES"]
 
 FLOORPLAN_SUFFIXES = (".geojson", ".json", ".ifc", ".yaml", ".yml")
 
@@ -30,7 +30,9 @@ def load_floorplan(
     Args:
         path: ``.geojson``/``.json`` (GeoJSON), ``.ifc`` (IFC model), ``.yaml``/``.yml``
             (ROS map_server map).
-        storey: IFC storey name or elevation (IFC only).
+        storey: IFC storey name or elevation, or GeoJSON level; None: every storey (IFC:
+            those whose cut meets walls and spaces; GeoJSON: every ``level``), laid side by
+            side in one plan when there are several (``storeys.stack_storeys``).
         cut_height: IFC cutting-plane height above the storey (m).
         free_thresh, occupied_thresh: override the ROS map's thresholds (ROS maps only).
         local: move a plan far from the origin next to it (``origin.local_origin``).
@@ -48,20 +50,20 @@ def load_floorplan(
         )
     if not path.is_file():
         raise FloorplanError(f"{path}: file not found")
-    if storey is not None and suffix != ".ifc":
-        raise FloorplanError(f"{path}: storey={storey!r} applies to IFC files only")
+    if storey is not None and suffix not in (".ifc", ".geojson", ".json"):
+        raise FloorplanError(f"{path}: storey={storey!r} applies to IFC and GeoJSON files only")
     rosmap = suffix in (".yaml", ".yml")
     for flag, value in (("free_thresh", free_thresh), ("occupied_thresh", occupied_thresh)):
         if value is not None and not rosmap:
             raise FloorplanError(f"{path}: {flag}={value!r} applies to ROS maps (.yaml) only")
     if suffix in (".geojson", ".json"):
-        from mfcl_jax.floorplan.geojson import load_geojson
+        from mfcl_jax.floorplan.building import geojson_building
 
-        fp = load_geojson(path)
+        fp = geojson_building(path, storey)
     elif suffix == ".ifc":
-        from mfcl_jax.floorplan.ifc import load_ifc
+        from mfcl_jax.floorplan.building import ifc_building
 
-        fp = load_ifc(path, storey=storey, cut_height=cut_height)
+        fp = ifc_building(path, storey=storey, cut_height=cut_height)
     else:
         from mfcl_jax.floorplan.rosmap import load_rosmap
 
@@ -80,6 +82,23 @@ def load_floorplan(
     from mfcl_jax.floorplan.origin import local_origin
 
     return local_origin(fp)
+
+
+def load_building(paths, storey=None, **opts) -> Floorplan:
+    """``load_floorplan`` of one file; several files (``--floorplan`` given more than once,
+    e.g. one ROS map per storey) are one storey each, named by the file's stem and stacked
+    (``storey`` then picks one of them by that name)."""
+    paths = [paths] if isinstance(paths, str | Path) else list(paths)
+    if len(paths) == 1:
+        return load_floorplan(paths[0], storey=storey, **opts)
+    stems = [Path(p).stem for p in paths]
+    if storey is not None:
+        if str(storey) not in stems:
+            raise FloorplanError(f"storey {storey!r}: not one of the plans {stems} (file stems)")
+        return load_floorplan(paths[stems.index(str(storey))], **opts)
+    from mfcl_jax.floorplan.building import stack_files
+
+    return stack_files([(Path(p), load_floorplan(p, **{**opts, "local": False})) for p in paths])
 
 
 def floorplan_files(path) -> list[Path]:

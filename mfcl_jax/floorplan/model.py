@@ -83,6 +83,8 @@ class Floorplan:
         outside_unknown: True for an occupancy map: what lies outside its rooms and walls was
             never observed (unknown), which is no evidence of a wall; False for a plan,
             whose outside is outside the building (``raster.UNOBSERVED``).
+        storeys: for several storeys laid side by side (``storeys.stack_storeys``), the
+            ``Storeys`` that map its places back to the storeys; None for one storey.
     """
 
     walls: np.ndarray
@@ -95,6 +97,7 @@ class Floorplan:
     offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     walls_derived: bool = False
     outside_unknown: bool = False
+    storeys: object = field(default=None, repr=False, compare=False)
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):

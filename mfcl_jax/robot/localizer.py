@@ -102,6 +102,7 @@ class WindowResult:
         points: ``(n, 2)`` the window's submap points in its frame ``S_k`` (``X`` places them
             in the odometry frame, ``T* X`` in the plan).
         unique_llr: the uniqueness lane's threshold ``log(1 / alpha)`` (None for ``ours``).
+        storeys: the plan's ``floorplan.storeys.Storeys`` (None for one storey).
     """
 
     k: int
@@ -119,12 +120,13 @@ class WindowResult:
     segment: int = 0
     points: np.ndarray | None = None
     unique_llr: float | None = None
+    storeys: object = None
 
     def record(self, offset=(0.0, 0.0)) -> dict:
         """The decisions-file line (``records.record_of``; ``offset``: plan = local + offset), with
         the window's ``k`` over the recording and its odometry ``segment``."""
         return records.record_of(self.decision, self.k, self.t, self.X, self.X_input, offset,
-                         self.segment, self.unique_llr)  # fmt: skip
+                         self.segment, self.unique_llr, self.storeys)  # fmt: skip
 
     def status(self, offset=(0.0, 0.0)) -> str:
         """One human-readable status line (``status.status_line``)."""
@@ -245,7 +247,7 @@ class Localizer:
                     n_points=len(w.points[0]), voxel=float(w.voxel[0]), n_candidates=int(n_cand),
                     frontend_reason=int(reason), rethinned=bool(W.rethinned(w)[0]),
                     X_input=np.asarray(w.X_input[0]), segment=int(seg), points=w.points[0],
-                    unique_llr=self.params.unique_llr,
+                    unique_llr=self.params.unique_llr, storeys=self.floorplan.storeys,
                 )  # fmt: skip
 
     def _inputs(self, pts, org, X, t, traj, traj_mask, start) -> tuple:

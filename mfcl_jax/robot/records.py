@@ -17,7 +17,7 @@ from mfcl_jax.decision import lattice
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
 from mfcl_jax.se2 import wrap_host
 
-__all__ = ["robot_pose", "record", "record_of", "unique_entry"]
+__all__ = ["robot_pose", "record", "record_of", "unique_entry", "storey_view"]
 
 
 def robot_pose(anchor, X) -> tuple[float, float, float]:
@@ -70,6 +70,31 @@ def record(
     return d
 
 
+def _storey_alternatives(alt, storeys, group, others, offset) -> list:
+    """Each alternative named by its storey; the best placement repeated on every storey of
+    a shared place (the same spot, moved by the motion between the congruent storeys)."""
+    names = storeys.names
+    out = []
+    first = alt[0]
+    if group:
+        local = (first["x"] - offset[0], first["y"] - offset[1], math.radians(first["yaw_deg"]))
+        stacked = _compose(storeys.place[group[0]], local)
+        for s in group:
+            x, y, yaw = storeys.to_storey(s, stacked)
+            out.append({"x": x + offset[0], "y": y + offset[1], "yaw_deg": math.degrees(yaw),
+                        "storey": names[s]})  # fmt: skip
+    else:
+        out.append(dict(first, storey=None))
+    for a in alt[1:]:
+        out.append(dict(a, storey=names[others[0]] if others else None))
+    return out
+
+
+def _compose(a, b) -> tuple[float, float, float]:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
+
+
 def unique_entry(llr: float, needed: float) -> dict:
     """The decisions file's ``unique`` entry: the uniqueness test's ratio at a window
     (``llr``: NaN where it did not run, written null; +inf where no other placement was
@@ -83,13 +108,52 @@ def unique_entry(llr: float, needed: float) -> dict:
     return {"llr": value, "needed": round(float(needed), 4)}
 
 
+def storey_view(storeys, anchor, X) -> tuple[list[int], tuple | None]:
+    """Where an anchor of a stacked plan (``floorplan.storeys``) puts the robot: the storeys
+    of that place (one, or several congruent ones) and the anchor in the first one's frame
+    (None off every storey)."""
+    px, py, _ = robot_pose(anchor, X)
+    t = storeys.tile_at(px, py)
+    if t < 0:
+        return [], None
+    group = storeys.group(t)
+    return group, storeys.to_storey(group[0], anchor)
+
+
+def _with_storeys(d: dict, storeys, X, a, rival) -> tuple:
+    """The record's ``storey`` (COMMIT: the storey's name) and ``storeys`` (the storeys
+    still possible: the commit's, or those of the explanations of an AMBIGUOUS window; an
+    AMBIGUOUS window whose explanations lie on different storeys, or on a place several
+    congruent storeys share, has ``symmetry`` ``"storey"``), and the anchors moved to their
+    storeys' frames: ``(d, best, rival, its storeys, the rival's storeys)``."""
+    names = storeys.names
+    group, a_s = storey_view(storeys, a, X)
+    d["storey"] = names[group[0]] if d["state"] == "COMMIT" and len(group) == 1 else None
+    d["storeys"] = None
+    others: list[int] = []
+    r_s = None
+    if rival is not None:
+        others, r_s = storey_view(storeys, rival, X)
+    if d["state"] == "COMMIT":
+        d["storeys"] = [names[s] for s in group]
+    elif d["state"] == "AMBIGUOUS":
+        both = list(dict.fromkeys(group + others))
+        d["storeys"] = [names[s] for s in both] or None
+        if len(group) > 1 or (others and others[0] not in group):
+            d["symmetry"], d["tau"] = "storey", None
+    return d, (a_s or tuple(a)), (r_s if rival is not None else None), group, others
+
+
 def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment=None,
-              unique_llr: float | None = None) -> dict:  # fmt: skip
+              unique_llr: float | None = None, storeys=None) -> dict:  # fmt: skip
     """The decisions-file line of one lane's ``Decision`` (host scalars): the state, the
     anchor (when COMMIT), the robot's pose and the reason (``record``); ``k`` the
     window's index over the whole recording, ``segment`` (when given) its odometry segment;
     ``unique_llr`` (a uniqueness lane's ``log(1 / alpha)``) adds ``unique``: the test's ratio
-    at this window against that threshold (null where the test did not run)."""
+    at this window against that threshold (null where the test did not run). ``storeys``
+    (a stacked plan's ``Storeys``) adds ``storey`` and ``storeys`` (``_with_storeys``); the
+    anchor, pose and alternatives are then in the storey's own frame, and every alternative
+    names its storey (one per storey of a place several congruent storeys share)."""
     state = STATE_NAMES[int(dec.state)]
     kind = lattice.KIND_NAMES[int(dec.kind)]
     a = np.asarray(dec.anchor, np.float64)
@@ -110,7 +174,14 @@ def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment
         "margin": int(dec.margin),
     }
     rival = tuple(np.asarray(dec.competitor, np.float64)) if bool(dec.has_competitor) else None
-    d = record(d, X, REASONS[int(dec.reason)], offset, X_input, tuple(a), rival)
+    best = tuple(a)
+    if storeys is not None:
+        d, best, rival, group, others = _with_storeys(d, storeys, X, best, rival)
+        if anchor is not None:
+            d["anchor"] = {"x": best[0], "y": best[1], "yaw_deg": math.degrees(best[2])}
+    d = record(d, X, REASONS[int(dec.reason)], offset, X_input, best, rival)
+    if storeys is not None and d["alternatives"]:
+        d["alternatives"] = _storey_alternatives(d["alternatives"], storeys, group, others, offset)
     if unique_llr is not None:
         d["unique"] = unique_entry(float(dec.llr), unique_llr)
     return d

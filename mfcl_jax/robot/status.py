@@ -21,8 +21,8 @@ STATE_TEXT = {
     "COMMIT": "localized: one place in the building explains the scans and no symmetric "
     "copy of it stays possible; the line gives the robot's current pose in the plan frame.",
     "AMBIGUOUS": "the scans match the building, but more than one place fits them equally "
-    "(a repeated layout with period tau, a rotational or mirror symmetry, or several separate "
-    "places: multimodal); where a competing placement is known, the line gives the robot's "
+    "(a repeated layout with period tau, a rotational or mirror symmetry, several separate "
+    "places: multimodal, or the same place on several storeys: storey); where a competing placement is known, the line gives the robot's "
     "pose under the best placement and under it ('robot at (x, y, heading) or (...)'); walk "
     "on towards something that tells the places apart.",
     "DEFER": "not enough evidence yet; the reason says what is missing. Keep moving.",
@@ -120,6 +120,10 @@ REASON_TEXT = {
 TERM_TEXT = {
     "pose": "COMMIT lines: the robot's current pose in the plan frame, T* X_k (x, y in "
     "metres, heading in degrees counter-clockwise from the plan's x axis).",
+    "storey": "with a plan of several storeys (an IFC model without --storey, GeoJSON "
+    "levels, several --floorplan maps): COMMIT names the storey and gives the pose in its "
+    "frame; AMBIGUOUS storey lists the storeys where the same place fits (congruent floors: "
+    "walk on to something that differs between them, or name the storey with --storey).",
     "B1": "support of the best placement: how many windows that share no scan have their "
     "best registration agree with it (independent evidence for it).",
     "B2": "support of the runner-up, a different placement, counted the same way (the "
@@ -149,6 +153,7 @@ EXAMPLE = (
 )
 
 _KINDS = {
+    "storey": "the same place on several storeys",
     "translation": "repeated layout",
     "rotation": "rotational symmetry",
     "mirror": "mirror symmetry",
@@ -205,7 +210,11 @@ def markdown() -> str:
         "With `--early-commit` every line also holds `unique`: `{llr, needed}`, the "
         'uniqueness test\'s ratio at that window (`null` where it did not run, `"inf"` '
         'where no other placement was found; `"-inf"` where a veto held) and the ratio a '
-        "commit needs.",
+        "commit needs. With a plan of several storeys every line also holds `storey` (the "
+        "storey's name when COMMIT, else `null`) and `storeys` (the storeys still possible: "
+        "the commit's, or those of the explanations of an AMBIGUOUS window; `null` for "
+        "DEFER); the anchor, pose and alternatives are in that storey's frame, and each "
+        "alternative names its `storey`.",
     ]
     return "\n".join(out) + "\n"
 
@@ -217,7 +226,9 @@ def _places(d: dict) -> str:
     if len(alt) < 2:
         return ""
     return "; robot at " + " or ".join(
-        f"({a['x']:.2f}, {a['y']:.2f}, {a['yaw_deg']:.0f} deg)" for a in alt
+        f"({a['x']:.2f}, {a['y']:.2f}, {a['yaw_deg']:.0f} deg"
+        + (f" on {a['storey']!r})" if a.get("storey") else ")")
+        for a in alt
     )
 
 
@@ -227,7 +238,11 @@ def status_line(d: dict, detail: str = "") -> str:
     head = f"k={d['k']:3d} t={d['t']:10.2f} {d['state']:9s}"
     if d["state"] == "COMMIT":
         p = d["pose"]
-        what = f"robot at x={p['x']:.2f} m, y={p['y']:.2f} m, heading {p['yaw_deg']:.1f} deg"
+        on = f" on storey {d['storey']!r}" if d.get("storey") else ""
+        what = f"robot{on} at x={p['x']:.2f} m, y={p['y']:.2f} m, heading {p['yaw_deg']:.1f} deg"
+    elif d["symmetry"] == "storey":
+        names = ", ".join(repr(n) for n in d.get("storeys") or [])
+        what = f"storey unknown: the same place on storeys {names}" + _places(d)
     elif d["symmetry"] == "translation" and d["tau"] is not None:
         tx, ty = d["tau"]
         what = f"repeated layout: position known up to multiples of tau=({tx:.2f}, {ty:.2f}) m"

@@ -39,6 +39,7 @@ GROUPS = {
         "test_cli_live", "test_cli_status", "test_cli_signals", "test_cli_inputs", "test_cli_many",
         "test_traced", "test_plan_frame", "test_safe_output", "test_input_rates",
         "test_input_units", "test_input_bags", "test_ros2_node", "test_named_failures",
+        "test_storeys",
     ),
     "frontend": ("test_frontend", "test_frontend_kernels", "test_frontend_driver"),
     "benchmark": ("test_benchmark", "test_benchmark_tables", "test_launcher"),

@@ -56,7 +56,11 @@ def add_evaluate_command(subparsers) -> None:
         type=Path,
         help="--plot: the floor plan to draw (default: the dataset's floorplan.*)",
     )
-    ev.add_argument("--storey", help="--plot: IFC storey name or elevation")
+    ev.add_argument(
+        "--storey",
+        help="the storey the recording was made on (a plan of several "
+        "storeys): a COMMIT that names another storey is false; --plot draws it",
+    )
     ev.set_defaults(func=cmd_evaluate)
 
 
@@ -81,6 +85,13 @@ def cmd_evaluate(args) -> int:
     gt_t, gt = read_tum(gt_path)
     frame = decisions_frame(decisions)  # in time order, with segments
     scored = score_rows(frame, ot, odo, gt_t, gt, where=str(args.decisions))
+    named = [d.get("storey") for d in decisions if d["state"] == "COMMIT"]
+    if any(n is not None for n in named):
+        if args.storey is None:
+            raise DataError(f"{args.decisions}: its commits name storeys; pass --storey NAME "
+                            "(the storey the recording was made on) to judge them")  # fmt: skip
+        other = scored["storey"].notna() & (scored["storey"] != str(args.storey))
+        scored.loc[other, "correct"] = False
     print(f"judged by: a COMMIT is correct within {CORRECT_XY:.2f} m and {CORRECT_YAW_DEG:.1f} "
           f"deg of {gt_path.name} at the decision's time (the robot's pose it gives: its "
           f"anchor composed with odometry.tum); DEFER and AMBIGUOUS windows place nothing "
@@ -109,6 +120,8 @@ def cmd_evaluate(args) -> int:
         from mfcl_jax.report.plots_run import plot_run
 
         fp = load_floorplan(plan, storey=args.storey)
+        if fp.storeys is not None:
+            raise DataError(f"{plan}: several storeys; --plot draws one: pass --storey NAME")
         print(f"figure: {plot_run(args.plot, fp, gt, odo, scored, folder.name)}")
     com = scored[scored["state"] == "COMMIT"] if len(scored) else scored
     wrong = com[~com["correct"].astype(bool)] if len(com) else com

@@ -47,8 +47,10 @@ def add_input_flags(lo) -> None:
         "dataset folders; omit with --bag/--carmen",
     )
     lo.add_argument(
-        "--floorplan", type=Path, help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's"
-    )
+        "--floorplan", type=Path, action="append",
+        help="floor plan (.ifc/.geojson/.yaml); overrides the dataset's; give it once per storey "
+        "for one plan per storey (e.g. ROS maps, each storey named by its file's stem)",
+    )  # fmt: skip
     lo.add_argument("--bag", type=Path, help="ROS1 .bag or ROS2 bag folder instead of a dataset")
     lo.add_argument("--scan-topic", default="/scan", help="LaserScan/PointCloud2 topic (/scan)")
     lo.add_argument("--odom-topic", default="/odom", help="nav_msgs/Odometry topic (/odom)")
@@ -76,7 +78,9 @@ def add_input_flags(lo) -> None:
     )
     lo.add_argument("--base-frame", default="base_link", help="--tf-static parent (base_link)")
     add_rosmap_flags(lo)
-    lo.add_argument("--storey", help="IFC storey name or elevation")
+    lo.add_argument("--storey", help="IFC storey name or elevation, GeoJSON level, or the stem "
+                    "of one of several --floorplan files; default: every storey, and a commit "
+                    "names the robot's")  # fmt: skip
     add_band_flags(lo)
 
 

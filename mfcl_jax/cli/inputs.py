@@ -84,7 +84,7 @@ def input_paths(args, folders) -> list:
     from mfcl_jax.sources.dataset import FLOORPLAN_NAMES
 
     paths = [args.bag, args.carmen]
-    plans = [args.floorplan] if args.floorplan is not None else []
+    plans = list(args.floorplan or [])
     for d in folders:
         paths += [d / "odometry.tum", d / "groundtruth.tum", d / "scans"]
         plans += [d / n for n in FLOORPLAN_NAMES]
@@ -130,7 +130,7 @@ def check_inputs(args, folders) -> None:
 def load_input(args, folders=()):
     """(floorplan, ScanSequence, notes) of one input: a dataset folder, a bag or a CARMEN
     log; the notes say what was dropped or applied on the way."""
-    from mfcl_jax.floorplan.load import load_floorplan
+    from mfcl_jax.floorplan.load import load_building
     from mfcl_jax.io import DataError
 
     folders = list(folders)
@@ -138,8 +138,8 @@ def load_input(args, folders=()):
     planar = planar_params(args)
     opts = dict(free_thresh=args.free_thresh, occupied_thresh=args.occupied_thresh)
     fp = None
-    if args.floorplan is not None:
-        fp = load_floorplan(args.floorplan, storey=args.storey, **opts)
+    if args.floorplan:
+        fp = load_building(args.floorplan, storey=args.storey, **opts)
     if folders:
         return load_dataset_input(args, folders[0], fp, planar)
     src = args.bag if args.bag is not None else args.carmen
@@ -150,7 +150,7 @@ def load_input(args, folders=()):
         seq, notes = _load_bag(args, planar)
     else:
         seq, notes = _load_carmen(args)
-    _check_scale(fp, seq, args.floorplan, src)
+    _check_scale(fp, seq, " + ".join(str(p) for p in args.floorplan), src)
     return fp, seq, notes
 
 

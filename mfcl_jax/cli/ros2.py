@@ -43,9 +43,14 @@ def add_ros2_commands(subparsers) -> None:
         epilog=ROS2_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    ro.add_argument("--floorplan", type=Path, required=True,
-                    help="floor plan (.ifc/.geojson/.yaml): the frame of --map-frame")  # fmt: skip
-    ro.add_argument("--storey", help="IFC storey name or elevation")
+    ro.add_argument("--floorplan", type=Path, required=True, action="append",
+                    help="floor plan (.ifc/.geojson/.yaml): the frame of --map-frame; once per "
+                    "storey for one map per storey (each named by its file's stem)")  # fmt: skip
+    ro.add_argument(
+        "--storey",
+        help="IFC storey name or elevation, GeoJSON level, or a "
+        "--floorplan stem; default: every storey (a commit names the robot's)",
+    )
     scan = ro.add_mutually_exclusive_group()
     scan.add_argument("--scan-topic", default="/scan", help="LaserScan topic (/scan)")
     scan.add_argument("--cloud-topic", help="PointCloud2 topic instead of a LaserScan topic")

@@ -52,7 +52,7 @@ def follow(args, progress: Progress) -> int:
         try:
             stop = signals.run(
                 lambda: _run_follow(
-                    args, progress, follower, args.floorplan or plans[0], records, state
+                    args, progress, follower, args.floorplan or plans[:1], records, state
                 )
             )
             if stop is not None:
@@ -81,15 +81,15 @@ def _run_follow(args, progress, follower, plan, records: list, state: dict) -> N
     the viz writer (None without ``--viz`` or once dropped: ``state["dropped"]``)."""
     start(progress)
     from mfcl_jax.cli.segments import Splits
-    from mfcl_jax.floorplan.load import load_floorplan
+    from mfcl_jax.floorplan.load import load_building
     from mfcl_jax.io.decisions import decision_line
     from mfcl_jax.robot.localizer import Localizer
     from mfcl_jax.robot.signals import atomic
     from mfcl_jax.robot.viz import VizWriter
 
     opts = dict(free_thresh=args.free_thresh, occupied_thresh=args.occupied_thresh)
-    with progress.stage(f"loading {plan}"):
-        fp = load_floorplan(plan, storey=args.storey, **opts)
+    with progress.stage(f"loading {' + '.join(str(p) for p in plan)}"):
+        fp = load_building(plan, storey=args.storey, **opts)
     loc = Localizer(fp, localize_params(args))
     state["viz"] = VizWriter(args.viz, fp) if args.viz is not None else None
     folder = follower.folder

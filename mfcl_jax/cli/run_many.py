@@ -109,11 +109,11 @@ def _run_many(args, folders, progress, bad: dict, decided, budget, report) -> No
     start(progress)
     from mfcl_jax.cli.inputs import load_dataset_input, planar_params
     from mfcl_jax.cli.segments import Splits
-    from mfcl_jax.floorplan.load import load_floorplan
+    from mfcl_jax.floorplan.load import load_building
     from mfcl_jax.robot.status import status_line
 
     fp_opts = dict(free_thresh=args.free_thresh, occupied_thresh=args.occupied_thresh)
-    plan = load_floorplan(args.floorplan, storey=args.storey, **fp_opts) if args.floorplan else None
+    plan = load_building(args.floorplan, storey=args.storey, **fp_opts) if args.floorplan else None
     planar = planar_params(args)
     loaded = {}
     for i, f in enumerate(folders):

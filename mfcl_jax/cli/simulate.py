@@ -49,6 +49,13 @@ def cmd_simulate(args) -> int:
     wp = read_waypoints(args.trajectory)
     with progress.stage(f"loading {args.floorplan}"):
         fp = load_floorplan(args.floorplan, storey=args.storey)
+    if fp.storeys is not None:
+        from mfcl_jax.io import DataError
+
+        raise DataError(
+            f"{args.floorplan}: {len(fp.storeys.names)} storeys "
+            f"({', '.join(map(repr, fp.storeys.names))}): a walk is on one; pass --storey NAME"
+        )
     with progress.stage(f"simulating the walk and writing {args.out} (ray caster: {COMPILING})"):
         out = simulate_dataset(
             fp, wp, args.out, seed=args.seed, overwrite=args.overwrite,

@@ -111,11 +111,14 @@ class Storeys:
         return len(self.group(t)) > 1
 
     def tile_at(self, x: float, y: float) -> int:
-        """The tile whose bounds hold ``(x, y)`` (stacked-plan frame), else -1."""
+        """The tile nearest ``(x, y)`` (stacked-plan frame; 0 inside its bounds), or -1 when
+        every tile is ``GAP / 2`` or farther away."""
         b = self.boxes
-        inside = (b[:, 0] <= x) & (x <= b[:, 2]) & (b[:, 1] <= y) & (y <= b[:, 3])
-        hit = np.flatnonzero(inside)
-        return int(hit[0]) if hit.size else -1
+        dx = np.maximum(np.maximum(b[:, 0] - x, x - b[:, 2]), 0.0)
+        dy = np.maximum(np.maximum(b[:, 1] - y, y - b[:, 3]), 0.0)
+        d = np.hypot(dx, dy)
+        t = int(np.argmin(d))
+        return t if d[t] < GAP / 2 else -1
 
     def to_storey(self, s: int, pose) -> tuple[float, float, float]:
         """A pose or anchor ``(x, y, theta)`` of the stacked plan in storey ``s``'s frame."""
@@ -168,10 +171,12 @@ def stack_storeys(storeys: list[tuple[str, Floorplan]], name: str = "", source: 
             reps.append(i)
     bounds = np.array([storeys[r][1].bounds for r in reps])
     corners = _tile_grid(bounds[:, 2:] - bounds[:, :2])
-    shift = np.array([[cx - b[0], cy - b[1], 0.0] for (cx, cy), b in zip(corners, bounds)])
+    shift = np.array(
+        [[cx - b[0], cy - b[1], 0.0] for (cx, cy), b in zip(corners, bounds, strict=True)]
+    )
     place = np.array([_compose(shift[tile[i]], to_rep[i]) for i in range(len(storeys))])
     boxes = np.array([[b[0] + s[0], b[1] + s[1], b[2] + s[0], b[3] + s[1]]
-                      for b, s in zip(bounds, shift)])  # fmt: skip
+                      for b, s in zip(bounds, shift, strict=True)])  # fmt: skip
     walls, thick, rooms, doors, polys = [], [], [], [], []
     for t, r in enumerate(reps):
         label = "+".join(names[s] for s in np.flatnonzero(tile == t))

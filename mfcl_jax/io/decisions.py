@@ -26,9 +26,9 @@ from mfcl_jax.io.errors import DataError
 __all__ = ["write_decisions", "read_decisions", "decision_line", "STATES", "SYMMETRIES"]
 
 STATES = ("COMMIT", "DEFER", "AMBIGUOUS")
-SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal")
+SYMMETRIES = (None, "translation", "rotation", "mirror", "multimodal", "storey")
 _KEYS = ("k", "t", "state", "anchor", "symmetry", "tau", "B1", "B2", "margin")
-_OPTIONAL = ("segment", "pose", "reason", "alternatives", "unique")
+_OPTIONAL = ("segment", "pose", "reason", "alternatives", "unique", "storey", "storeys")
 # The order of the keys on a line: the window and its segment first.
 _ORDER = ("k", "segment", *_KEYS[1:], *_OPTIONAL[1:])
 
@@ -54,6 +54,21 @@ def _check_unique(where: str, u) -> None:
                         '"inf", "-inf" or null')  # fmt: skip
     if not (_number(u["needed"]) and u["needed"] > 0):
         raise DataError(f"{where}: unique.needed={u['needed']!r}, expected a number > 0")
+
+
+def _check_storeys(where: str, d: dict) -> None:
+    """``storey`` (a name, or null) and ``storeys`` (a list of names, or null) of a plan of
+    several storeys: a COMMIT names one storey, and it is the one ``storeys`` lists."""
+    if "storey" in d and d["storey"] is not None and not isinstance(d["storey"], str):
+        raise DataError(f"{where}: storey={d['storey']!r}, expected a storey name or null")
+    names = d.get("storeys")
+    if names is not None and (
+        not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names)
+    ):
+        raise DataError(f"{where}: storeys={names!r}, expected a list of storey names or null")
+    if "storey" in d and d["state"] == "COMMIT" and (d["storey"] is None or names != [d["storey"]]):
+        raise DataError(f"{where}: a COMMIT names its storey: storey={d['storey']!r}, "
+                        f"storeys={names!r}")  # fmt: skip
 
 
 def _check(where: str, d: dict) -> dict:
@@ -91,6 +106,11 @@ def _check(where: str, d: dict) -> dict:
         for i, a in enumerate(alt):
             if a is None:
                 raise DataError(f"{where}: alternatives[{i}] is null, expected {{x, y, yaw_deg}}")
+            if isinstance(a, dict) and "storey" in a:
+                if a["storey"] is not None and not isinstance(a["storey"], str):
+                    raise DataError(f"{where}: alternatives[{i}].storey={a['storey']!r}, "
+                                    "expected a storey name or null")  # fmt: skip
+                a = {k: v for k, v in a.items() if k != "storey"}
             _check_pose(where, f"alternatives[{i}]", a)
     if "segment" in d:
         seg = d["segment"]
@@ -98,6 +118,7 @@ def _check(where: str, d: dict) -> dict:
             raise DataError(f"{where}: segment={seg!r}, expected an integer >= 0")
     if "unique" in d and d["unique"] is not None:
         _check_unique(where, d["unique"])
+    _check_storeys(where, d)
     if "reason" in d and not isinstance(d["reason"], str):
         raise DataError(f"{where}: reason={d['reason']!r}, expected a string")
     tau = d["tau"]

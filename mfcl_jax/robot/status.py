@@ -22,9 +22,10 @@ STATE_TEXT = {
     "copy of it stays possible; the line gives the robot's current pose in the plan frame.",
     "AMBIGUOUS": "the scans match the building, but more than one place fits them equally "
     "(a repeated layout with period tau, a rotational or mirror symmetry, several separate "
-    "places: multimodal, or the same place on several storeys: storey); where a competing placement is known, the line gives the robot's "
-    "pose under the best placement and under it ('robot at (x, y, heading) or (...)'); walk "
-    "on towards something that tells the places apart.",
+    "places: multimodal, or the same place on several storeys: storey); where a competing "
+    "placement is known, the line gives the robot's pose under the best placement and under "
+    "it ('robot at (x, y, heading) or (...)'); walk on towards something that tells the "
+    "places apart.",
     "DEFER": "not enough evidence yet; the reason says what is missing. Keep moving.",
 }
 

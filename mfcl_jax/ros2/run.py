@@ -54,7 +54,7 @@ def run_node(args, progress) -> int:
     from mfcl_jax.robot.signals import StopSignals, stop_name, stop_status
 
     params = node_params(args)
-    inputs = [args.floorplan]
+    inputs = list(args.floorplan)
     if args.out is not None:
         check_output(args.out, inputs=inputs)
     if args.viz is not None:
@@ -73,12 +73,12 @@ def run_node(args, progress) -> int:
                  f"{params.feed.odom_topic}; publishing {params.pose_topic}, "
                  f"{params.status_topic}")  # fmt: skip
             start(progress)
-            from mfcl_jax.floorplan.load import load_floorplan
+            from mfcl_jax.floorplan.load import load_building
             from mfcl_jax.robot.localizer import Localizer
             from mfcl_jax.robot.viz import VizWriter
 
-            with progress.stage(f"loading {args.floorplan}"):
-                fp = load_floorplan(args.floorplan, storey=args.storey,
+            with progress.stage(f"loading {' + '.join(map(str, args.floorplan))}"):
+                fp = load_building(args.floorplan, storey=args.storey,
                                     free_thresh=args.free_thresh,
                                     occupied_thresh=args.occupied_thresh)  # fmt: skip
             lp = localize_params(args)

@@ -63,7 +63,8 @@ def pose_at(times, poses, t, where: str = "<poses>") -> np.ndarray:
 def decisions_frame(decisions) -> pd.DataFrame:
     """A decisions JSON-lines log (``io.read_decisions``) as a table in time order: ``k, t,
     segment, state, symmetry, B1, B2, margin, x, y, yaw_deg`` (anchor NaN when none) and
-    ``pose_x, pose_y, pose_yaw_deg`` (the robot's pose the line gives; NaN when none).
+    ``pose_x, pose_y, pose_yaw_deg`` (the robot's pose the line gives; NaN when none) and
+    ``storey`` (the storey a commit names in a plan of several; None otherwise).
 
     Rows are ordered by ``t`` (lines with equal times keep the file's order), never by ``k``:
     a file written before ``k`` counted over the whole recording starts ``k`` again at 1
@@ -90,10 +91,11 @@ def decisions_frame(decisions) -> pd.DataFrame:
                 pose_x=pose.get("x", math.nan),
                 pose_y=pose.get("y", math.nan),
                 pose_yaw_deg=pose.get("yaw_deg", math.nan),
+                storey=d.get("storey"),
             )
         )
     cols = ["k", "t", "segment", "state", "symmetry", "B1", "B2", "margin", "x", "y", "yaw_deg",
-            "pose_x", "pose_y", "pose_yaw_deg"]  # fmt: skip
+            "pose_x", "pose_y", "pose_yaw_deg", "storey"]  # fmt: skip
     df = pd.DataFrame(rows, columns=cols)
     if df.empty:
         return df.astype({"segment": np.int64})

@@ -120,8 +120,15 @@ def make_tower(kind: str, seed: int, n: int = 4) -> Tower:
             if seg is None:
                 continue
             fp = _with_stub(typical.floorplan, seg, f"{typical.name}+{r}")
-            scenes.append(Scene(fp.name, fp, typical.clutter, typical.trajectories,
-                                clutter_height=typical.clutter_height))
+            scenes.append(
+                Scene(
+                    fp.name,
+                    fp,
+                    typical.clutter,
+                    typical.trajectories,
+                    clutter_height=typical.clutter_height,
+                )
+            )
             features.append(seg)
         if len(scenes) < 2:
             raise ValueError(f"tower-one_room-{seed}: no room takes a stub clear of the walks")

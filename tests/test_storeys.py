@@ -1,0 +1,130 @@
+"""Every storey at once: congruent storeys share one place, a commit names the storey, and a
+walk on a floor identical to another never commits (AMBIGUOUS(storey) or DEFER)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from mfcl_jax.cli import main
+from mfcl_jax.floorplan import FloorplanError, load_floorplan
+from mfcl_jax.floorplan.geojson_write import floorplan_to_geojson, save_geojson
+from mfcl_jax.floorplan.load import load_building
+from mfcl_jax.floorplan.storeys import congruence, stack_storeys
+from mfcl_jax.io import read_decisions
+from mfcl_jax.sim.families.tower import make_tower
+
+
+@pytest.fixture(scope="module")
+def towers():
+    return {k: make_tower(k, 0, 4) for k in ("typical", "one_room", "rotated")}
+
+
+def test_congruent_storeys_share_a_place_and_map_back(towers):
+    typ = towers["typical"]
+    plan, st = stack_storeys(typ.storeys, name=typ.name)
+    assert st.names == ("G", "L1", "L2", "L3")
+    assert list(st.tile) == [0, 1, 1, 1] and st.n_tiles == 2
+    assert not st.shared(0) and st.shared(1) and st.group(1) == [1, 2, 3]
+    assert typ.congruent == [False, True, True, True]
+    # every room once per place, named after the storeys that share it
+    g_rooms, l_rooms = len(typ.storeys[0][1].rooms), len(typ.storeys[1][1].rooms)
+    assert len(plan.rooms) == g_rooms + l_rooms
+    assert all(n.startswith(("G/", "L1+L2+L3/")) for n in plan.room_names)
+    # a pose on L2 goes to the stacked plan and back unchanged
+    pose = np.array([3.0, 2.0, 0.4])
+    c, s = math.cos(st.place[2][2]), math.sin(st.place[2][2])
+    stacked = (st.place[2][0] + c * pose[0] - s * pose[1],
+               st.place[2][1] + s * pose[0] + c * pose[1], st.place[2][2] + pose[2])  # fmt: skip
+    assert st.tile_at(*stacked[:2]) == 1
+    assert np.allclose(st.to_storey(2, stacked), pose)
+    # the places lie GAP apart: no window reaches from one to the other
+    b = st.boxes
+    assert b[1, 1] - b[0, 3] >= 12.0 - 1e-9 or b[1, 0] - b[0, 2] >= 12.0 - 1e-9
+
+
+def test_congruence_sees_a_half_turn_and_a_stub(towers):
+    rot = towers["rotated"]
+    g = congruence(rot.storeys[1][1], rot.storeys[2][1])
+    assert g is not None and abs(abs(g[2]) - math.pi) < 1e-9  # L2 is L1 turned by 180 deg
+    assert rot.congruent == [False, True, True, True]
+    one = towers["one_room"]
+    # floors identical but for one 1.2 m wall stub each: no two are congruent
+    assert one.congruent == [False] * len(one.storeys)
+    assert congruence(one.storeys[0][1], one.storeys[1][1]) is None
+    _, st = stack_storeys(one.storeys)
+    assert st.n_tiles == len(one.storeys)
+
+
+def _levels(storeys, path):
+    feats = []
+    for name, fp in storeys:
+        for f in floorplan_to_geojson(fp)["features"]:
+            f.setdefault("properties", {})["level"] = name
+            feats.append(f)
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    return path
+
+
+def test_geojson_levels_and_several_files_are_storeys(towers, tmp_path):
+    typ = towers["typical"]
+    path = _levels(typ.storeys[:3], tmp_path / "tower.geojson")
+    plan = load_floorplan(path)
+    assert plan.storeys.names == ("G", "L1", "L2") and plan.storeys.n_tiles == 2
+    one = load_floorplan(path, storey="L1")
+    assert one.storeys is None and len(one.rooms) == len(typ.storeys[1][1].rooms)
+    with pytest.raises(FloorplanError, match=r"unknown level 'L9'; levels: G, L1, L2"):
+        load_floorplan(path, storey="L9")
+    data = json.loads(path.read_text())
+    del data["features"][3]["properties"]["level"]
+    (tmp_path / "mixed.geojson").write_text(json.dumps(data))
+    with pytest.raises(FloorplanError, match=r"feature #3 has no 'level' property"):
+        load_floorplan(tmp_path / "mixed.geojson")
+    flat = save_geojson(typ.storeys[0][1], tmp_path / "flat.geojson")
+    with pytest.raises(FloorplanError, match="no feature has a 'level'"):
+        load_floorplan(flat, storey="G")
+    # one file per storey (as ROS maps come): named by the file's stem
+    a = save_geojson(typ.storeys[0][1], tmp_path / "ground.geojson")
+    b = save_geojson(typ.storeys[1][1], tmp_path / "first.geojson")
+    both = load_building([a, b])
+    assert both.storeys.names == ("ground", "first")
+    assert load_building([a, b], storey="first").storeys is None
+
+
+def test_a_walk_on_a_typical_floor_never_commits_and_the_ground_floor_names_itself(
+    towers, tmp_path, capsys
+):
+    """``mfcl localize`` of two walks against a three-storey GeoJSON (levels): on the ground
+    floor the layer commits and names ``G``; on L1, identical to L2, it never commits and says
+    AMBIGUOUS(storey) with both storeys; ``mfcl evaluate --storey`` judges the storey."""
+    from mfcl_jax.sources.simulated import simulate_dataset
+
+    typ = towers["typical"]
+    plan = _levels(typ.storeys[:3], tmp_path / "tower.geojson")
+    data = tmp_path / "data"
+    for s, name in ((0, "G"), (1, "L1")):
+        scene = typ.scenes[s]
+        wp = scene.trajectories[sorted(scene.trajectories)[0]]
+        simulate_dataset(scene.floorplan, wp, data / name, seed=s)
+    out = tmp_path / "out"
+    assert main(["localize", str(data), "--floorplan", str(plan), "--out-dir", str(out)]) == 0
+    text = capsys.readouterr().out
+    g, l1 = read_decisions(out / "G.jsonl"), read_decisions(out / "L1.jsonl")
+    commits = [d for d in g if d["state"] == "COMMIT"]
+    assert commits and all(d["storey"] == "G" and d["storeys"] == ["G"] for d in commits)
+    assert "on storey 'G'" in text
+    assert not any(d["state"] == "COMMIT" for d in l1)
+    amb = [d for d in l1 if d["symmetry"] == "storey"]
+    assert amb and all(d["storeys"] == ["L1", "L2"] and d["storey"] is None for d in amb)
+    assert l1[-1]["symmetry"] == "storey"
+    alt = amb[-1]["alternatives"]
+    assert [a["storey"] for a in alt[:2]] == ["L1", "L2"]
+    # the same spot on both floors (identical, unmoved): the pose is the walk's
+    assert math.hypot(alt[0]["x"] - alt[1]["x"], alt[0]["y"] - alt[1]["y"]) < 1e-6
+    dec = str(out / "G.jsonl")
+    assert main(["evaluate", str(data / "G"), "--decisions", dec, "--storey", "G"]) == 0
+    assert main(["evaluate", str(data / "G"), "--decisions", dec, "--storey", "L1"]) != 0
+    capsys.readouterr()

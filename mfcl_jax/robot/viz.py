@@ -176,6 +176,19 @@ class VizWriter:
         }
         self._put("/mfcl/plan", ns, {"deletions": [], "entities": [entity]})
 
+    def _drawn(self, p: dict, storey) -> dict:
+        """A pose of the record (a storey's frame where the plan stacks several storeys,
+        ``floorplan.storeys``) where the drawn plan shows it."""
+        st = self.floorplan.storeys
+        if st is None or storey is None:
+            return p
+        ox, oy = (float(v) for v in self._offset)
+        px, py, pyaw = st.place[st.names.index(storey)]
+        x, y = float(p["x"]) - ox, float(p["y"]) - oy
+        c, s = math.cos(pyaw), math.sin(pyaw)
+        return {"x": px + c * x - s * y + ox, "y": py + s * x + c * y + oy,
+                "yaw_deg": float(p["yaw_deg"]) + math.degrees(pyaw)}  # fmt: skip
+
     def add(self, result, record: dict) -> None:
         """Adds one window.
 
@@ -198,6 +211,8 @@ class VizWriter:
         seg, X = int(getattr(result, "segment", 0)), np.asarray(result.X, np.float64)
         self._history.append((seg, X))
         pose = record.get("pose") if record["state"] == "COMMIT" else None
+        if pose is not None:
+            pose = self._drawn(pose, record.get("storey"))
         stamp, cloud = stamp_of(ns), np.zeros((0, 2), "<f4")
         path = np.zeros((0, 3))
         if pose is not None:
@@ -222,7 +237,8 @@ class VizWriter:
             },
         )
         one = [] if pose is None else [_xyyaw(pose)]
-        alts = [_xyyaw(a) for a in (record.get("alternatives") or [])]
+        alts = [_xyyaw(self._drawn(a, a.get("storey")))
+                for a in (record.get("alternatives") or [])]  # fmt: skip
         for topic, rows in (
             ("/mfcl/pose", one),
             ("/mfcl/path", path),

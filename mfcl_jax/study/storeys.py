@@ -48,6 +48,7 @@ class Walk:
     storey: str
     congruent: bool
     storeys: tuple = ()  # the building's (name, plan) in each storey's own frame
+    tiles: tuple = ()  # the place of each storey in the building's stacked plan
     fault: str = ""
 
 
@@ -68,7 +69,8 @@ def tower_walks(kinds, seeds, n_storeys: int) -> list[Walk]:
                 w = names[s % len(names)]
                 rec = simulate(scene, [w], [1000 * int(seed) + s], SimParams())[0]
                 out.append(Walk(f"{tw.name}/{st.names[s]}/{w}", f"tower:{kind}", plan, rec,
-                                st.names[s], bool(tw.congruent[s]), tuple(tw.storeys)))  # fmt: skip
+                                st.names[s], bool(tw.congruent[s]), tuple(tw.storeys),
+                                tuple(int(t) for t in st.tile)))  # fmt: skip
     return out
 
 
@@ -100,7 +102,7 @@ def ifc_walks(data, tours: int, seed: int = 0) -> list[Walk]:
             congruent = st.shared(int(st.tile[s]))
             for w, rec in zip(trajs, recs, strict=True):
                 out.append(Walk(f"{path.stem}/{name}/{w}", f"ifc:{path.stem}", plan, rec, name,
-                                congruent, own))  # fmt: skip
+                                congruent, own, tuple(int(t) for t in st.tile)))  # fmt: skip
     return out
 
 
@@ -120,9 +122,9 @@ def meets(walk: Walk, other: int) -> bool:
 def tells_apart(walk: Walk) -> bool:
     """The walk passes a difference between its storey and every storey not congruent to
     it (``meets``): the scans can name its storey."""
-    st = walk.plan.storeys
-    s = st.names.index(walk.storey)
-    return all(meets(walk, o) for o in range(len(st.names)) if st.tile[o] != st.tile[s])
+    s = [n for n, _ in walk.storeys].index(walk.storey)
+    tiles = walk.tiles
+    return all(meets(walk, o) for o in range(len(tiles)) if tiles[o] != tiles[s])
 
 
 def wrong_storey(walks: list[Walk]) -> tuple[list[Walk], int]:
@@ -141,7 +143,7 @@ def wrong_storey(walks: list[Walk]) -> tuple[list[Walk], int]:
             continue
         name, plan = w.storeys[others[0]]
         out.append(Walk(w.run + f"@{name}", w.family, plan, w.rec, w.storey, w.congruent,
-                        w.storeys, fault="wrong storey given"))  # fmt: skip
+                        w.storeys, w.tiles, fault="wrong storey given"))  # fmt: skip
     return out, left
 
 

@@ -12,7 +12,8 @@ simulated once):
 
 Each plan's first window compiles (reported apart); every later window is timed (wall).
 Medians and 95th percentiles per plan and the ratio to one storey, all measured in this one
-run. Writes ``results/bench_storeys.csv``, ``.md`` and ``.png``.
+run. Writes ``results/bench_storeys.csv``, ``.md`` and ``.png`` (the table is pasted into
+``docs/storeys.md``).
 Usage: ``python benchmarks/storeys.py [--seed 0]``.
 """
 
@@ -51,7 +52,8 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", default=str(ROOT / "results" / "bench_storeys"))
+    default = str(ROOT / "results" / "bench_storeys")
+    ap.add_argument("--out", default=default)
     a = ap.parse_args(argv)
 
     typical = make_tower("typical", a.seed, 10)
@@ -95,6 +97,10 @@ def main(argv=None) -> int:
         f"{int(g.size().iloc[0])} timed windows per plan.\n\n{text}\n"
     )
     print(text)
+    from mfcl_jax.study.readme import update_block
+
+    if a.out == default:
+        update_block(ROOT / "docs" / "storeys.md", "bench_storeys", a.out + ".md")
     fig, ax = plt.subplots(figsize=(6, 3.2))
     for name in plans:
         d = rest[rest.plan == name]

@@ -3,7 +3,8 @@
 Decides walks on the tower family and on the real multi-storey IFC models against the whole
 building, and the same walks against a wrong storey's plan alone (logic in
 ``mfcl_jax.study.storeys``); writes ``runs.csv`` (one row per walk), ``summary.md`` and
-``timing.md`` under ``--out``.
+``timing.md`` under ``--out``. A full run into the default folder refreshes the generated
+tables of ``docs/storeys.md``.
 """
 
 from __future__ import annotations
@@ -65,6 +66,11 @@ def main(argv=None) -> int:
     print(timing.to_markdown(index=False))
     false = int((rows["commit_false"] > 0).sum())
     print(f"walks with a false commit: {false}")
+    if out == Path("results/storeys") and not args.quick:
+        from mfcl_jax.study.readme import update_docs
+
+        names = update_docs("results")
+        print(f"README and docs: refreshed {len(names)} generated tables")
     return 0
 
 

@@ -91,7 +91,9 @@ def test_geojson_levels_and_several_files_are_storeys(towers, tmp_path):
     b = save_geojson(typ.storeys[1][1], tmp_path / "first.geojson")
     both = load_building([a, b])
     assert both.storeys.names == ("ground", "first")
-    assert load_building([a, b], storey="first").storeys is None
+    assert load_building([a, b], storey="first").storeys.given == 1  # still both weighed
+    with pytest.raises(FloorplanError, match=r"storey 'third': not one of the plans"):
+        load_building([a, b], storey="third")
 
 
 def test_a_walk_on_a_typical_floor_never_commits_and_the_ground_floor_names_itself(
@@ -128,3 +130,54 @@ def test_a_walk_on_a_typical_floor_never_commits_and_the_ground_floor_names_itse
     assert main(["evaluate", str(data / "G"), "--decisions", dec, "--storey", "G"]) == 0
     assert main(["evaluate", str(data / "G"), "--decisions", dec, "--storey", "L1"]) != 0
     capsys.readouterr()
+
+
+def _decision(state: int, anchor, competitor=None):
+    """A host ``Decision``-like record of one lane (what ``records.record_of`` reads)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        state=state, kind=0, anchor=np.asarray(anchor, np.float64), tau=np.zeros(2), b1=3,
+        b2=0, margin=3, reason=0, competitor=np.zeros(3) if competitor is None
+        else np.asarray(competitor, np.float64), has_competitor=competitor is not None,
+        llr=np.nan,
+    )  # fmt: skip
+
+
+def test_a_storey_named_is_weighed_with_the_others(towers, tmp_path):
+    """``--storey`` on a plan of several storeys: every storey is still stacked and the named
+    one marked given; its place (shared with its congruent twins) names it; a commit on another
+    storey's place is DEFER ``other storey``, never a pose; the decision maps' shared flag
+    spares the given storey's place."""
+    from mfcl_jax.decision.maps import decision_maps
+    from mfcl_jax.decision.outcome import COMMIT
+    from mfcl_jax.io.decisions import decision_line
+    from mfcl_jax.robot.records import OTHER_STOREY, record_of
+
+    typ = towers["typical"]
+    path = _levels(typ.storeys, tmp_path / "tower.geojson")
+    plan = load_building([path], storey="L2")
+    st = plan.storeys
+    assert st.names == ("G", "L1", "L2", "L3") and st.given == 2
+    assert not st.shared(1)  # L1+L2+L3 share a place; L2 is given, so it names it
+    assert not decision_maps(plan).shared.any()
+    free = load_building([path]).storeys
+    assert free.given == -1 and free.shared(1)
+    assert decision_maps(load_building([path])).shared.sum() == len(typ.storeys[1][1].rooms)
+    X = np.zeros(3)
+
+    def at(s, x, y):  # the anchor placing the robot (X = identity) at (x, y) on storey s
+        return (st.place[s][0] + x, st.place[s][1] + y, st.place[s][2])
+
+    on_l2 = record_of(_decision(COMMIT, at(2, 3.0, 2.0)), 1, 0.0, X, storeys=st)
+    assert on_l2["state"] == "COMMIT" and on_l2["storey"] == "L2"
+    assert np.allclose([on_l2["pose"]["x"], on_l2["pose"]["y"]], [3.0, 2.0])
+    on_g = record_of(_decision(COMMIT, at(0, 3.0, 2.0)), 2, 1.0, X, storeys=st)
+    assert on_g["state"] == "DEFER" and on_g["reason"] == OTHER_STOREY
+    assert on_g["pose"] is None and on_g["anchor"] is None and on_g["storeys"] == ["G"]
+    decision_line(on_l2), decision_line(on_g)  # both are valid lines
+    # without a storey named, a commit on the shared place names none
+    shared = record_of(_decision(COMMIT, at(2, 3.0, 2.0)), 3, 2.0, X, storeys=free)
+    assert shared["state"] == "AMBIGUOUS" and shared["symmetry"] == "storey"
+    assert shared["storeys"] == ["L1", "L2", "L3"] and shared["storey"] is None
+    decision_line(shared)

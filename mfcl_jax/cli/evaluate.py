@@ -119,9 +119,11 @@ def cmd_evaluate(args) -> int:
         from mfcl_jax.floorplan.load import load_floorplan
         from mfcl_jax.report.plots_run import plot_run
 
-        fp = load_floorplan(plan, storey=args.storey)
-        if fp.storeys is not None:
-            raise DataError(f"{plan}: several storeys; --plot draws one: pass --storey NAME")
+        fp = load_floorplan(plan)
+        if fp.storeys is not None:  # a model of several storeys: draw the walk's
+            if args.storey is None:
+                raise DataError(f"{plan}: several storeys; --plot draws one: pass --storey NAME")
+            fp = load_floorplan(plan, storey=args.storey)
         print(f"figure: {plot_run(args.plot, fp, gt, odo, scored, folder.name)}")
     com = scored[scored["state"] == "COMMIT"] if len(scored) else scored
     wrong = com[~com["correct"].astype(bool)] if len(com) else com

@@ -5,7 +5,10 @@
   level, one storey per level (``storey`` selects one); a file without levels is one storey;
 * ROS maps (or any plans): several files, one storey each, named by the file's stem.
 
-A building with one usable storey is that storey's plan, unchanged.
+A building with one usable storey is that storey's plan, unchanged. With ``every`` (what
+``mfcl`` does), a storey named with ``storey`` does not narrow the search: every storey is
+still stacked and the named one is marked given (``Storeys.given``), so the layer can say
+when the scans fit another storey instead.
 """
 
 from __future__ import annotations
@@ -19,25 +22,28 @@ from mfcl_jax.floorplan.storeys import stack_storeys
 __all__ = ["ifc_building", "geojson_building", "stack_files"]
 
 
-def _stacked(path, storeys: list[tuple[str, Floorplan]], name: str) -> Floorplan:
+def _stacked(path, storeys: list[tuple[str, Floorplan]], name: str, given=None) -> Floorplan:
     if len(storeys) == 1:
         return storeys[0][1]
-    plan, _ = stack_storeys(storeys, name=name, source=str(path))
+    plan, _ = stack_storeys(storeys, name=name, source=str(path), given=given)
     return plan
 
 
-def ifc_building(path, storey=None, cut_height: float = 1.0) -> Floorplan:
-    """The IFC model's storey ``storey`` (name or elevation), or with None every storey whose
-    cut meets walls and spaces, stacked.
+def ifc_building(path, storey=None, cut_height: float = 1.0, every: bool = False) -> Floorplan:
+    """The IFC model's storey ``storey`` (name or elevation), or with None (or ``every``)
+    every storey whose cut meets walls and spaces, stacked (``storey`` then marked given).
 
     Raises:
-        FloorplanError: as ``ifc.load_ifc``; with None, no storey has walls and spaces (each
-            storey's reason is listed).
+        FloorplanError: as ``ifc.load_ifc``; no storey has walls and spaces (each storey's
+            reason is listed).
     """
     from mfcl_jax.floorplan.ifc import ifc_storeys, load_ifc
 
     if storey is not None:
-        return load_ifc(path, storey=storey, cut_height=cut_height)
+        one = load_ifc(path, storey=storey, cut_height=cut_height)  # checks the name
+        if not every:
+            return one
+        storey = one.source.rsplit(" [", 1)[-1].rstrip("]")
     found, why = [], []
     for sname, _ in ifc_storeys(path):
         try:
@@ -46,7 +52,7 @@ def ifc_building(path, storey=None, cut_height: float = 1.0) -> Floorplan:
             why.append(str(e).split(": ", 1)[-1])
     if not found:
         raise FloorplanError(f"{path}: no storey has both walls and spaces: {'; '.join(why)}")
-    return _stacked(path, found, Path(path).stem)
+    return _stacked(path, found, Path(path).stem, storey)
 
 
 def _level_key(v):
@@ -56,9 +62,9 @@ def _level_key(v):
         return (1, 0.0, str(v))
 
 
-def geojson_building(path, storey=None) -> Floorplan:
+def geojson_building(path, storey=None, every: bool = False) -> Floorplan:
     """A GeoJSON plan; with ``level`` properties, its levels stacked (or the level
-    ``storey``).
+    ``storey``; with ``every`` all levels, ``storey`` marked given).
 
     Raises:
         FloorplanError: as ``geojson.load_geojson``; some features with a level and some
@@ -92,7 +98,7 @@ def geojson_building(path, storey=None) -> Floorplan:
     names = sorted({str(v) for v in levels}, key=_level_key)
     if storey is not None and str(storey) not in names:
         raise FloorplanError(f"{path}: unknown level {storey!r}; levels: {', '.join(names)}")
-    chosen = [str(storey)] if storey is not None else names
+    chosen = [str(storey)] if storey is not None and not every else names
     storeys = []
     for lv in chosen:
         part = [f for f, v in zip(feats, levels, strict=True) if str(v) == lv]
@@ -100,11 +106,12 @@ def geojson_building(path, storey=None) -> Floorplan:
             {**data, "features": part}, source=f"{path} [level {lv}]", name=f"{path.stem} {lv}"
         )
         storeys.append((lv, fp))
-    return _stacked(path, storeys, path.stem)
+    return _stacked(path, storeys, path.stem, None if storey is None else str(storey))
 
 
-def stack_files(plans: list[tuple[Path, Floorplan]]) -> Floorplan:
-    """Several plan files, one storey each (named by the file's stem), stacked."""
+def stack_files(plans: list[tuple[Path, Floorplan]], given: str | None = None) -> Floorplan:
+    """Several plan files, one storey each (named by the file's stem), stacked (``given``:
+    the stem of the storey the user named)."""
     names = [p.stem for p, _ in plans]
     if len(set(names)) != len(names):
         raise FloorplanError(
@@ -112,4 +119,4 @@ def stack_files(plans: list[tuple[Path, Floorplan]]) -> Floorplan:
             "(file stem) that names their storey; rename one"
         )
     src = " + ".join(str(p) for p, _ in plans)
-    return _stacked(src, [(p.stem, fp) for p, fp in plans], "building")
+    return _stacked(src, [(p.stem, fp) for p, fp in plans], "building", given)

@@ -24,6 +24,7 @@ def load_floorplan(
     free_thresh: float | None = None,
     occupied_thresh: float | None = None,
     local: bool = True,
+    every: bool = False,
 ) -> Floorplan:
     """Loads a floor plan, choosing the reader by the file extension.
 
@@ -36,6 +37,8 @@ def load_floorplan(
         cut_height: IFC cutting-plane height above the storey (m).
         free_thresh, occupied_thresh: override the ROS map's thresholds (ROS maps only).
         local: move a plan far from the origin next to it (``origin.local_origin``).
+        every: with ``storey``, still stack every storey and mark that one given
+            (``storeys.Storeys.given``: what ``mfcl`` does).
 
     Raises:
         FloorplanError: unknown extension, missing file, an option for another format, or
@@ -59,11 +62,11 @@ def load_floorplan(
     if suffix in (".geojson", ".json"):
         from mfcl_jax.floorplan.building import geojson_building
 
-        fp = geojson_building(path, storey)
+        fp = geojson_building(path, storey, every)
     elif suffix == ".ifc":
         from mfcl_jax.floorplan.building import ifc_building
 
-        fp = ifc_building(path, storey=storey, cut_height=cut_height)
+        fp = ifc_building(path, storey=storey, cut_height=cut_height, every=every)
     else:
         from mfcl_jax.floorplan.rosmap import load_rosmap
 
@@ -85,20 +88,20 @@ def load_floorplan(
 
 
 def load_building(paths, storey=None, **opts) -> Floorplan:
-    """``load_floorplan`` of one file; several files (``--floorplan`` given more than once,
-    e.g. one ROS map per storey) are one storey each, named by the file's stem and stacked
-    (``storey`` then picks one of them by that name)."""
+    """What ``mfcl`` reads: ``load_floorplan(..., every=True)`` of one file; several files
+    (``--floorplan`` given more than once, e.g. one ROS map per storey) are one storey each,
+    named by the file's stem and stacked. A ``storey`` named (an IFC storey, a GeoJSON level,
+    a file's stem) is marked given, and every storey is still weighed."""
     paths = [paths] if isinstance(paths, str | Path) else list(paths)
     if len(paths) == 1:
-        return load_floorplan(paths[0], storey=storey, **opts)
+        return load_floorplan(paths[0], storey=storey, every=True, **opts)
     stems = [Path(p).stem for p in paths]
-    if storey is not None:
-        if str(storey) not in stems:
-            raise FloorplanError(f"storey {storey!r}: not one of the plans {stems} (file stems)")
-        return load_floorplan(paths[stems.index(str(storey))], **opts)
+    if storey is not None and str(storey) not in stems:
+        raise FloorplanError(f"storey {storey!r}: not one of the plans {stems} (file stems)")
     from mfcl_jax.floorplan.building import stack_files
 
-    return stack_files([(Path(p), load_floorplan(p, **{**opts, "local": False})) for p in paths])
+    loaded = [(Path(p), load_floorplan(p, **{**opts, "local": False})) for p in paths]
+    return stack_files(loaded, None if storey is None else str(storey))
 
 
 def floorplan_files(path) -> list[Path]:

@@ -91,6 +91,10 @@ class Storeys:
         place: ``(S, 3)`` the motion from each storey's own frame to the stacked plan's.
         boxes: ``(T, 4)`` each tile's bounds in the stacked plan (xmin, ymin, xmax, ymax).
         source: where the storeys came from (error messages).
+        given: the storey the user named (``--storey``), or -1: every storey is still weighed,
+            a commit on the given storey's place names it (its congruent twins included), and
+            a commit elsewhere is not reported (``robot.records``: the scans fit another
+            storey).
     """
 
     names: tuple[str, ...]
@@ -98,6 +102,7 @@ class Storeys:
     place: np.ndarray
     boxes: np.ndarray
     source: str = "<memory>"
+    given: int = -1
 
     @property
     def n_tiles(self) -> int:
@@ -108,7 +113,8 @@ class Storeys:
         return [int(s) for s in np.flatnonzero(self.tile == t)]
 
     def shared(self, t: int) -> bool:
-        return len(self.group(t)) > 1
+        """Several storeys on tile ``t`` and none of them the given one (which settles it)."""
+        return len(self.group(t)) > 1 and self.given not in self.group(t)
 
     def tile_at(self, x: float, y: float) -> int:
         """The tile nearest ``(x, y)`` (stacked-plan frame; 0 inside its bounds), or -1 when
@@ -134,8 +140,10 @@ def _tile_grid(sizes: np.ndarray) -> list[tuple[float, float]]:
     return [((i % cols) * w, (i // cols) * h) for i in range(n)]
 
 
-def stack_storeys(storeys: list[tuple[str, Floorplan]], name: str = "", source: str = ""):
-    """Lays the storeys ``[(name, plan), ...]`` (lowest first) out as one plan.
+def stack_storeys(storeys: list[tuple[str, Floorplan]], name: str = "", source: str = "",
+                  given: str | None = None):  # fmt: skip
+    """Lays the storeys ``[(name, plan), ...]`` (lowest first) out as one plan (``given``:
+    the storey the user named, ``Storeys.given``).
 
     Returns:
         ``(plan, Storeys)``: the stacked plan (rooms named ``"<storey>/<room>"``, its
@@ -198,6 +206,13 @@ def stack_storeys(storeys: list[tuple[str, Floorplan]], name: str = "", source: 
         offset=offset,
         walls_derived=any(fp.walls_derived for _, fp in storeys),
         outside_unknown=any(fp.outside_unknown for _, fp in storeys),
-        storeys=Storeys(tuple(names), tile, place, boxes, source or first.source),
+        storeys=Storeys(
+            tuple(names),
+            tile,
+            place,
+            boxes,
+            source or first.source,
+            -1 if given is None else names.index(given),
+        ),
     )
     return plan, plan.storeys

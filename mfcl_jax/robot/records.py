@@ -108,15 +108,20 @@ def unique_entry(llr: float, needed: float) -> dict:
     return {"llr": value, "needed": round(float(needed), 4)}
 
 
+OTHER_STOREY = "other storey"  # the reason of a commit on another storey than the one given
+
+
 def storey_view(storeys, anchor, X) -> tuple[list[int], tuple | None]:
     """Where an anchor of a stacked plan (``floorplan.storeys``) puts the robot: the storeys
-    of that place (one, or several congruent ones) and the anchor in the first one's frame
-    (None off every storey)."""
+    of that place (one, or several congruent ones; the given storey first where it is one of
+    them) and the anchor in the first one's frame (None off every storey)."""
     px, py, _ = robot_pose(anchor, X)
     t = storeys.tile_at(px, py)
     if t < 0:
         return [], None
     group = storeys.group(t)
+    if storeys.given in group:
+        group = [storeys.given] + [s for s in group if s != storeys.given]
     return group, storeys.to_storey(group[0], anchor)
 
 
@@ -125,17 +130,28 @@ def _with_storeys(d: dict, storeys, X, a, rival) -> tuple:
     still possible: the commit's, or those of the explanations of an AMBIGUOUS window; an
     AMBIGUOUS window whose explanations lie on different storeys, or on a place several
     congruent storeys share, has ``symmetry`` ``"storey"``), and the anchors moved to their
-    storeys' frames: ``(d, best, rival, its storeys, the rival's storeys)``."""
-    names = storeys.names
+    storeys' frames: ``(d, best, rival, its storeys, the rival's storeys)``. Where the user
+    named a storey (``Storeys.given``), a commit on its place names it, and a commit on
+    another storey's place is DEFER with the reason ``OTHER_STOREY`` (no pose)."""
+    names, given = storeys.names, storeys.given
     group, a_s = storey_view(storeys, a, X)
-    d["storey"] = names[group[0]] if d["state"] == "COMMIT" and len(group) == 1 else None
-    d["storeys"] = None
+    if d["state"] == "COMMIT" and not group:  # off every storey (the gate keeps it from it)
+        d.update(state="DEFER", anchor=None, symmetry=None, tau=None, reason="commit unsupported")
+    elif d["state"] == "COMMIT" and given >= 0 and given not in group:
+        d.update(state="DEFER", anchor=None, symmetry=None, tau=None, reason=OTHER_STOREY)
+        d["storeys"] = [names[s] for s in group]
+    elif d["state"] == "COMMIT" and len(group) > 1 and group[0] != given:
+        # a place congruent storeys share names none (``decision.storey`` sees to it first)
+        d.update(state="AMBIGUOUS", anchor=None, symmetry="storey", tau=None)
+    one = len(group) == 1 or (group and group[0] == given)
+    d["storey"] = names[group[0]] if d["state"] == "COMMIT" and one else None
+    d.setdefault("storeys", None)
     others: list[int] = []
     r_s = None
     if rival is not None:
         others, r_s = storey_view(storeys, rival, X)
     if d["state"] == "COMMIT":
-        d["storeys"] = [names[s] for s in group]
+        d["storeys"] = [names[group[0]]]
     elif d["state"] == "AMBIGUOUS":
         both = list(dict.fromkeys(group + others))
         d["storeys"] = [names[s] for s in both] or None
@@ -177,9 +193,9 @@ def record_of(dec, k: int, t: float, X, X_input=None, offset=(0.0, 0.0), segment
     best = tuple(a)
     if storeys is not None:
         d, best, rival, group, others = _with_storeys(d, storeys, X, best, rival)
-        if anchor is not None:
+        if d["state"] == "COMMIT":
             d["anchor"] = {"x": best[0], "y": best[1], "yaw_deg": math.degrees(best[2])}
-    d = record(d, X, REASONS[int(dec.reason)], offset, X_input, best, rival)
+    d = record(d, X, d.pop("reason", REASONS[int(dec.reason)]), offset, X_input, best, rival)
     if storeys is not None and d["alternatives"]:
         d["alternatives"] = _storey_alternatives(d["alternatives"], storeys, group, others, offset)
     if unique_llr is not None:

@@ -116,6 +116,13 @@ REASON_TEXT = {
         "Re-scoring the windows' scans favours a competing placement over the best one in "
         "some window and never the other way: the consensus winner is not trusted.",
     ),
+    "other storey": (
+        "the scans fit another storey than the one given",
+        "With --storey on a plan of several storeys every storey is still weighed: the layer "
+        "would commit, but on another storey (storeys names it) than the one given, so the "
+        "robot is probably not where you said; no pose is given. Check the storey, or leave "
+        "--storey out and let the layer name it.",
+    ),
 }
 
 TERM_TEXT = {

@@ -100,7 +100,7 @@ def load_dataset(
     Warns:
         DataWarning: scans outside the odometry's span, non-unit quaternions.
     """
-    from mfcl_jax.floorplan.load import load_floorplan
+    from mfcl_jax.floorplan.load import load_building
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -111,7 +111,7 @@ def load_dataset(
         if len(plans) != 1:
             found = [p.name for p in plans] or "none"
             raise DataError(f"{folder}: need exactly one of {FLOORPLAN_NAMES}, found {found}")
-        fp = load_floorplan(
+        fp = load_building(
             plans[0], storey=storey, free_thresh=free_thresh, occupied_thresh=occupied_thresh
         )
         plan_name = str(plans[0])

@@ -127,12 +127,19 @@ def tells_apart(walk: Walk) -> bool:
     return all(meets(walk, o) for o in range(len(tiles)) if tiles[o] != tiles[s])
 
 
+GIVEN, ALONE = "wrong storey given", "wrong storey's plan alone"
+
+
 def wrong_storey(walks: list[Walk]) -> tuple[list[Walk], int]:
-    """Each walk decided against another storey's plan alone (the next one up, wrapping, that
-    is not congruent to the walk's and differs from it where the walk passes: ``meets``);
-    ``(walks, left out)``: a walk with no such storey is left out (nothing it scans can
-    tell the plan given from its own storey's)."""
-    out, left = [], 0
+    """Each walk decided with another storey named (the next one up, wrapping, that is not
+    congruent to the walk's and differs from it where the walk passes: ``meets``) two ways:
+    ``GIVEN``, as ``mfcl localize --storey`` does (every storey weighed, the named one marked
+    given), and ``ALONE``, against that storey's plan only (a plan exported for one floor).
+    ``(walks, left out)``: a walk with no such storey is left out (nothing it scans can tell
+    the storey named from its own)."""
+    from mfcl_jax.floorplan.storeys import stack_storeys
+
+    out, left, stacked = [], 0, {}
     for w in walks:
         st = w.plan.storeys
         s = st.names.index(w.storey)
@@ -142,8 +149,12 @@ def wrong_storey(walks: list[Walk]) -> tuple[list[Walk], int]:
             left += 1
             continue
         name, plan = w.storeys[others[0]]
-        out.append(Walk(w.run + f"@{name}", w.family, plan, w.rec, w.storey, w.congruent,
-                        w.storeys, w.tiles, fault="wrong storey given"))  # fmt: skip
+        key = (w.plan.name, name)
+        if key not in stacked:
+            stacked[key] = stack_storeys(list(w.storeys), name=w.plan.name, given=name)[0]
+        for fault, p in ((GIVEN, stacked[key]), (ALONE, plan)):
+            out.append(Walk(w.run + f"@{name}", w.family, p, w.rec, w.storey, w.congruent,
+                            w.storeys, w.tiles, fault=fault))  # fmt: skip
     return out, left
 
 

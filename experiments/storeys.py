@@ -67,10 +67,10 @@ def main(argv=None) -> int:
     false = int((rows["commit_false"] > 0).sum())
     print(f"walks with a false commit: {false}")
     if out == Path("results/storeys") and not args.quick:
-        from mfcl_jax.study.readme import update_docs
+        from mfcl_jax.study.readme import update_block
 
-        names = update_docs("results")
-        print(f"README and docs: refreshed {len(names)} generated tables")
+        update_block("docs/storeys.md", "storeys/summary", out / "summary.md")
+        print("docs/storeys.md: refreshed its table")
     return 0
 
 

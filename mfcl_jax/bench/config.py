@@ -10,7 +10,10 @@ Sources of runs ("families"):
 * ``ifc:<model>``: the shared IFC models with ``ifc_walks`` random door-to-door tours each
   (per seed);
 * ``log:<name>`` / ``bag:intel``: windows of the real laser logs against occupancy maps built
-  without the window's own scans, ``log_windows`` windows each.
+  without the window's own scans, ``log_windows`` windows each;
+* ``tower:<kind>`` (not in the default run): the tower family (``sim.families.tower``), four
+  storeys, one walk per storey, each against the whole building's stacked plan; a commit on
+  a place several congruent storeys share names no storey and is scored false.
 
 Fault axes (``faults``) re-run a base set of procedural runs (``fault_seeds`` seeds x the
 first walk of every procedural family) at every level of the axis.
@@ -24,6 +27,7 @@ __all__ = [
     "BenchmarkError",
     "BenchmarkConfig",
     "PROCEDURAL",
+    "TOWERS",
     "IFC_MODELS",
     "LOGS",
     "FAULTS",
@@ -32,6 +36,7 @@ __all__ = [
 ]
 
 PROCEDURAL = ("plain", "bays", "offices", "corridor", "hall", "ring", "rotational", "mirror")
+TOWERS = ("tower:typical", "tower:one_room", "tower:rotated")
 IFC_MODELS = {
     "office_a": ("ifc/Office_A_20110811.ifc", "Level 1"),
     "duplex": ("ifc/Duplex_A_20110907_Architecture.ifc", "Level 1"),
@@ -130,7 +135,7 @@ def _bad(option: str, value, known=None) -> BenchmarkError:
 def validate(cfg: BenchmarkConfig) -> BenchmarkConfig:
     """Checks every option; returns ``cfg`` with ``faults=["all"]`` expanded."""
     known = [*PROCEDURAL, *(f"ifc:{m}" for m in IFC_MODELS), *(f"log:{n}" for n in LOGS)]
-    known.append("bag:intel")
+    known += ["bag:intel", *TOWERS]
     for f in cfg.families:
         if f not in known:
             raise _bad("families", f, known)

@@ -13,7 +13,7 @@ import hashlib
 import json
 import sys
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -144,7 +144,16 @@ def _labels(recs, wins, cfg, col: Collected):
                 d = asdict(lab)
                 d["identifiable_k"] = lab.identifiable_k.astype(int).tolist()
                 (cache / f"{_digest(recs[i])}.json").write_text(json.dumps(d))
-    return out
+    return [_storey_label(r, lab) for r, lab in zip(recs, out, strict=True)]
+
+
+def _storey_label(rec: Recording, lab):
+    """A walk on a storey congruent to another (a tower's typical floor) is not identifiable,
+    whatever its path: the place is, the storey never is."""
+    if not rec.meta.get("congruent"):
+        return lab
+    k = np.zeros_like(np.asarray(lab.identifiable_k, bool))
+    return replace(lab, identifiable=False, oracle_k=None, identifiable_k=k)
 
 
 def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:

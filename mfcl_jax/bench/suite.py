@@ -101,6 +101,32 @@ def _ifc(model: str, seed: int, n: int, cfg: BenchmarkConfig):
     return out
 
 
+def _tower(kind: str, seed: int, n_storeys: int = 4):
+    """One walk per storey of tower ``seed``, against the stacked plan; the truth moved into
+    the stacked plan's frame (``Storeys.place``)."""
+    from mfcl_jax.floorplan.storeys import stack_storeys
+    from mfcl_jax.se2 import compose_host
+    from mfcl_jax.sim.families.tower import make_tower
+    from mfcl_jax.sources.recording import GroundTruth, Recording
+    from mfcl_jax.sources.simulated import simulate
+
+    tw = make_tower(kind, seed, n_storeys)
+    plan, st = stack_storeys(tw.storeys, name=tw.name)
+    out = []
+    for s, scene in enumerate(tw.scenes):
+        names = sorted(scene.trajectories)
+        w = names[s % len(names)]
+        rec = simulate(scene, [w], [1000 * seed + s], SimParams())[0]
+        poses = compose_host(np.broadcast_to(st.place[s], rec.truth.poses.shape), rec.truth.poses)
+        truth = GroundTruth(rec.truth.times, poses, rec.truth.source)
+        meta = dict(rec.meta, storey=st.names[s], congruent=bool(tw.congruent[s]))
+        out.append(Recording(f"{tw.name}/{st.names[s]}/{w}", plan, rec.seq, truth, meta))
+    out = _tag(out, family=f"tower:{kind}", source="procedural", seed=seed, fault="", level="")
+    for r in out:
+        r.meta["walk"] = r.name.rsplit("/", 1)[-1]
+    return out
+
+
 def _logs(family: str, cfg: BenchmarkConfig):
     from mfcl_jax.sources import logs
 
@@ -148,6 +174,9 @@ def nominal_recordings(cfg: BenchmarkConfig) -> list:
         elif fam.startswith("ifc:"):
             for seed in range(cfg.seeds):
                 out += _ifc(fam[4:], seed, cfg.ifc_walks, cfg)
+        elif fam.startswith("tower:"):
+            for seed in range(cfg.seeds):
+                out += _tower(fam[6:], seed)
         else:
             out += _logs(fam, cfg)
         _log(cfg, f"{fam}: {len(out) - n0} runs")

@@ -1,7 +1,5 @@
-"""The floor-plan model: walls, named rooms, doors and the room graph they induce.
-
-Host-side and immutable (NumPy + shapely). Kernels never see this object: they see the
-``Rasters`` built from it (``mfcl_jax.floorplan.raster``).
+"""The floor-plan model: walls, named rooms, doors and the room graph they induce. Host-side
+and immutable (NumPy + shapely); kernels see the ``Rasters`` built from it (``raster``).
 """
 
 from __future__ import annotations

@@ -200,8 +200,22 @@ def score_batch(frame: pd.DataFrame, batch, recordings, rooms: bool = True) -> p
         # The anchors are of the layer's odometry (``Windows.odometry``, LiDAR-refined where
         # enabled), so that odometry places the robot.
         kt = np.asarray(rec.seq.times)[w.keyframes]
-        parts.append(score_rows(g, kt, w.odometry, rec.truth.times, rec.truth.poses, fp, rec.name))
+        s = score_rows(g, kt, w.odometry, rec.truth.times, rec.truth.poses, fp, rec.name)
+        parts.append(_storey_rule(s, rec.floorplan))
     return pd.concat(parts) if parts else frame.iloc[:0]
+
+
+def _storey_rule(scored: pd.DataFrame, floorplan) -> pd.DataFrame:
+    """On a plan of several storeys (``floorplan.storeys``), an anchor that places the robot
+    on a place several congruent storeys share names no storey: not correct, wherever the
+    truth is (the truth of a walk on any of them lies there too)."""
+    st = getattr(floorplan, "storeys", None)
+    if st is None or not len(scored) or "placed_x" not in scored:
+        return scored
+    xy = scored[["placed_x", "placed_y"]].to_numpy(np.float64)
+    tiles = [st.tile_at(x, y) if np.isfinite(x) else -1 for x, y in xy]
+    shared = np.array([t >= 0 and st.shared(t) for t in tiles])
+    return scored.assign(correct=scored["correct"].to_numpy(bool) & ~shared)
 
 
 def summarize(scored: pd.DataFrame) -> dict:

@@ -181,3 +181,27 @@ def test_a_storey_named_is_weighed_with_the_others(towers, tmp_path):
     assert shared["state"] == "AMBIGUOUS" and shared["symmetry"] == "storey"
     assert shared["storeys"] == ["L1", "L2", "L3"] and shared["storey"] is None
     decision_line(shared)
+
+
+def test_the_benchmark_scores_a_shared_place_as_naming_no_storey(towers):
+    """The benchmark's tower rows: an anchor on the place congruent storeys share is never a
+    correct commit (whatever the truth), and a walk on such a storey is not identifiable."""
+    import pandas as pd
+
+    from mfcl_jax.bench.run import _storey_label
+    from mfcl_jax.score.decisions import _storey_rule
+    from mfcl_jax.score.identifiability import RunLabel
+    from mfcl_jax.sources.recording import Recording
+
+    plan, st = stack_storeys(towers["typical"].storeys)
+    c_g = st.boxes[0, :2] + 2.0  # inside the ground floor's place
+    c_l = st.boxes[1, :2] + 2.0  # inside the place L1-L3 share
+    scored = pd.DataFrame({"placed_x": [c_g[0], c_l[0], np.nan],
+                           "placed_y": [c_g[1], c_l[1], np.nan],
+                           "correct": [True, True, False]})  # fmt: skip
+    assert _storey_rule(scored, plan)["correct"].tolist() == [True, False, False]
+    lab = RunLabel(True, 3, np.ones(5, bool), 0, None)
+    rec = Recording("t/L1/A", plan, None, None, {"congruent": True})
+    out = _storey_label(rec, lab)
+    assert not out.identifiable and out.oracle_k is None and not out.identifiable_k.any()
+    assert _storey_label(Recording("t/G/A", plan, None, None, {}), lab) is lab

@@ -76,6 +76,11 @@ def cmd_floorplan_show(args) -> int:
     )
     x0, y0, x1, y1 = fp.bounds
     print(f"extent {x1 - x0:.1f} x {y1 - y0:.1f} m; picture: {out}")
+    if fp.storeys is not None:
+        st = fp.storeys
+        groups = ["+".join(st.names[s] for s in st.group(t)) for t in range(st.n_tiles)]
+        print(f"{len(st.names)} storeys side by side, {st.n_tiles} places (congruent storeys "
+              f"share one): {', '.join(groups)}")  # fmt: skip
     if np.any(fp.offset != 0):
         ox, oy = fp.offset
         print(f"local origin: plan coordinates = picture coordinates + ({ox:.3f}, {oy:.3f})")

@@ -82,7 +82,7 @@ class Bench:
         t0 = time.perf_counter()
         subprocess.run(
             [sys.executable, "-c", MFCL, "simulate", "--floorplan", str(OFFICE_IFC),
-             "--trajectory", str(wp), "--out", str(data)],
+             "--storey", "Level 1", "--trajectory", str(wp), "--out", str(data)],
             cwd=ROOT, env=side_env(ROOT, self.tmp / "cache_simulate"), check=True,
         )  # fmt: skip
         log(f"office: dataset written in {time.perf_counter() - t0:.1f} s")

@@ -60,7 +60,7 @@ if name == "three_rooms":
     fp = get_scene("three_rooms").floorplan
 elif name == "office_a":
     from mfcl_jax.floorplan import load_floorplan
-    fp = load_floorplan(data + "/ifc/Office_A_20110811.ifc")
+    fp = load_floorplan(data + "/ifc/Office_A_20110811.ifc", storey="Level 1")
 else:
     from mfcl_jax.floorplan import load_floorplan
     fp = load_floorplan(data + "/maps/willow-full.yaml")

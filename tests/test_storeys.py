@@ -205,3 +205,28 @@ def test_the_benchmark_scores_a_shared_place_as_naming_no_storey(towers):
     out = _storey_label(rec, lab)
     assert not out.identifiable and out.oracle_k is None and not out.identifiable_k.any()
     assert _storey_label(Recording("t/G/A", plan, None, None, {}), lab) is lab
+
+
+def test_the_mcap_draws_a_commit_on_its_storey(towers, tmp_path):
+    """``--viz`` with a plan of several storeys: the decisions file gives the pose in the
+    storey's own frame; the MCAP draws the stacked plan, so the pose is drawn where that
+    storey lies in it (read back with the mcap reader)."""
+    from types import SimpleNamespace
+
+    from mfcl_jax.decision.outcome import COMMIT
+    from mfcl_jax.robot.records import record_of
+    from mfcl_jax.robot.viz import VizWriter
+    from tests._mcap import _read, _xyyaw
+
+    plan, st = stack_storeys(towers["typical"].storeys)
+    s = 0  # the ground floor (a place of its own)
+    anchor = (st.place[s][0] + 3.0, st.place[s][1] + 2.0, st.place[s][2] + 0.5)
+    rec = record_of(_decision(COMMIT, anchor), 1, 1.0, np.zeros(3), storeys=st)
+    assert rec["storey"] == "G" and np.allclose([rec["pose"]["x"], rec["pose"]["y"]], [3, 2])
+    viz = VizWriter(tmp_path / "v.mcap", plan, start=0.0)
+    viz.add(SimpleNamespace(k=1, t=1.0, X=np.zeros(3), segment=0, points=None), rec)
+    msgs = _read(viz.close())
+    (pose,) = msgs["/mfcl/pose"][0][2]["poses"]
+    x, y, yaw_deg = _xyyaw(pose)
+    assert np.allclose([x, y, math.radians(yaw_deg)], anchor, atol=1e-9)
+    assert st.tile_at(*_xyyaw(pose)[:2]) == int(st.tile[s])

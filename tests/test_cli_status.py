@@ -35,8 +35,10 @@ def _commit(**kw):
 # ------------------------------------------------------------------ text for a person
 def test_every_reason_and_state_is_explained():
     from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
+    from mfcl_jax.robot.records import OTHER_STOREY
 
-    assert set(status.REASON_TEXT) == set(REASONS.values()) - {""}
+    # the layer's reasons, and the one the host edge gives (a commit on another storey)
+    assert set(status.REASON_TEXT) == set(REASONS.values()) - {""} | {OTHER_STOREY}
     assert set(status.STATE_TEXT) == set(STATE_NAMES.values())
     text = status.help_text()
     for word in [*status.REASON_TEXT, *status.STATE_TEXT, "B1", "B2", "margin", "tau", "L"]:

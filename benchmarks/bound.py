@@ -1,4 +1,4 @@
-"""How long the branch and bound over every placement (``frontend.path_certify``) takes:
+"""How long the branch and bound over every placement (``experiments.audit.path_certify``) takes:
 ``python benchmarks/bound.py [--repeats N]`` (about 5 minutes).
 
 For the first walk of three procedural buildings, the path of windows 1..k (k = 3, 6, 9) is
@@ -27,10 +27,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 import pandas as pd
 
+from experiments.audit import path_bound, path_certify
 from mfcl_jax import se2
 from mfcl_jax import windows as W
 from mfcl_jax.decision import rivals
-from mfcl_jax.frontend import path_bound, path_certify, path_llr
+from mfcl_jax.frontend import path_llr
 from mfcl_jax.sim import SimParams, families
 from mfcl_jax.sources.simulated import simulate
 from mfcl_jax.windows.arrays import evidence_sample

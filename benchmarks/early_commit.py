@@ -64,9 +64,10 @@ def main(argv=None) -> int:
         (tmp / "wp.csv").write_text(WAYPOINTS)
         log(f"simulating the Office_A walk ({OFFICE_IFC.name})")
         subprocess.run([sys.executable, "-c", MFCL, "simulate", "--floorplan", str(OFFICE_IFC),
-                        "--storey", "Level 1", "--trajectory", str(tmp / "wp.csv"), "--odom-rate", "100", "--out",
-                        str(data)], cwd=ROOT, env=side_env(ROOT, tmp / "cache_sim"),
-                       check=True, capture_output=True)  # fmt: skip
+                        "--storey", "Level 1", "--trajectory", str(tmp / "wp.csv"),
+                        "--odom-rate", "100", "--out", str(data)], cwd=ROOT,
+                       env=side_env(ROOT, tmp / "cache_sim"), check=True,
+                       capture_output=True)  # fmt: skip
         caches = {p: tmp / f"cache_{i}" for i, p in enumerate(policies)}
         for phase, reps in (("cold", 1), ("warm", a.repeats)):
             for rep in range(1, reps + 1):

@@ -1,4 +1,4 @@
-"""The branch and bound over every placement of the path (``frontend.path_bound``,
+"""The branch and bound over every placement of the path (``experiments.audit.path_bound``,
 ``path_certify``): its cell
 bound is never below the log-likelihood of a placement inside the cell, it finds the congruent
 copy of a room that explains a walk inside it, and it certifies a walk whose rooms differ. The
@@ -11,10 +11,10 @@ import jax
 import numpy as np
 import pytest
 
+from experiments.audit import path_bound as pb
+from experiments.audit import path_certify as pc
 from mfcl_jax.decision import rivals
 from mfcl_jax.floorplan.raster import UNOBSERVED
-from mfcl_jax.frontend import path_bound as pb
-from mfcl_jax.frontend import path_certify as pc
 from mfcl_jax.frontend import path_llr
 from mfcl_jax.sim.synthetic import PITCH, evidence_at, row_of_rooms, walk
 

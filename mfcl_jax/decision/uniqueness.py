@@ -27,8 +27,8 @@ newest window's champion, and not disagree with a consensus winner of two or mor
 
 The search covers every placement on its grid, then the peaks are polished, so a competitor
 narrower than the grid's cell (0.4-0.5 m, 5 deg) can be missed: the certificate is
-exhaustive at that resolution, not a bound over the continuum (``frontend.path_certify``
-bounds the continuum, as an audit: ``experiments.certificate_audit``).
+exhaustive at that resolution, not a bound over the continuum (``experiments.audit.path_certify``
+bounds the continuum, as an audit: ``experiments.audit.certificate``).
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ below ``tau``), ``competitor`` (a placement outside the neighbourhood reaches ``
 ``open`` (the search could not tell within its budget: too many cells at one heading or one
 level, survivors at the finest level, or ``tau <= L_min``). The search runs on the host,
 level by level, over jitted batches of cells; its cost grows with the building's area and the
-share of placements the bound cannot rule out (``experiments.certificate_audit``).
+share of placements the bound cannot rule out (``experiments.audit.certificate``).
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import ndimage
 
+from experiments.audit.path_bound import EPS, SQ2, BoundFields, cell_bounds, solid, voxels
 from mfcl_jax.frontend import path_llr
-from mfcl_jax.frontend.path_bound import EPS, SQ2, BoundFields, cell_bounds, solid, voxels
 from mfcl_jax.frontend.path_fields import PlanFields
 from mfcl_jax.frontend.path_llr import LLRParams, PathEvidence
 from mfcl_jax.frontend.path_search import fft_size

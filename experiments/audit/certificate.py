@@ -1,5 +1,5 @@
 """Does the uniqueness test's grid search miss a competitor where a lane commits on it?
-``python -m experiments.certificate_audit [out] [lanes]`` (default ``results/certificate_audit``,
+``python -m experiments.audit.certificate [out] [lanes]`` (default ``results/certificate_audit``,
 lanes ``ours_unique,ours_unique_a2``).
 
 The uniqueness lanes (``decision.uniqueness``) commit when the best placement ``A*`` of the
@@ -9,7 +9,7 @@ audit takes every nominal run of the default benchmark (``results/benchmark/wind
 where a lane commits before ``ours`` does (the commit rests on the test, not on the count of
 windows), rebuilds the path evidence of that window from the recording (the windows and the
 evidence sample the layer reads, the path length by the refined odometry), polishes ``A*``
-under it from the committed pose, and runs the branch and bound (``frontend.path_certify``) over
+under it from the committed pose, and runs the branch and bound (``path_certify``) over
 every placement outside ``A*``'s neighbourhood for one within ``log(1 / alpha)`` of it:
 
 * ``certified``: none exists (the commit holds under the observation model, whatever the grid);
@@ -102,10 +102,11 @@ def audit_one(rec, k: int, anchor, alpha: float, cache: dict) -> dict:
     (``^B T_L``)."""
     import jax.numpy as jnp
 
+    from experiments.audit import path_bound, path_certify
     from mfcl_jax import se2
     from mfcl_jax import windows as W
     from mfcl_jax.decision import rivals
-    from mfcl_jax.frontend import path_bound, path_certify, path_llr
+    from mfcl_jax.frontend import path_llr
     from mfcl_jax.windows.arrays import evidence_sample
 
     w = W.cut(rec.seq, W.WindowParams(d_s=6.0))
@@ -174,7 +175,7 @@ def main(argv=None) -> int:
     lanes = argv[1].split(",") if len(argv) > 1 else ["ours_unique", "ours_unique_a2"]
     bad = [x for x in lanes if x not in LANES]
     if bad:
-        raise SystemExit(f"certificate_audit: unknown lanes {bad}; known {list(LANES)}")
+        raise SystemExit(f"audit.certificate: unknown lanes {bad}; known {list(LANES)}")
     windows = pd.read_csv("results/benchmark/windows.csv.gz", low_memory=False)
     tests = tests_of(windows, lanes)
     print(f"{len(tests)} tests: {tests.groupby('lane').size().to_dict()}", flush=True)

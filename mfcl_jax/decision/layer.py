@@ -13,9 +13,9 @@ a batch pays only for the windows that need one), each lane's rule (``rule.finis
 commit machine (``machine.step``), the check of every reported commit against the window's
 last metre of scans (``drift``; off where ``init`` has no plan fields or the window no end
 sample), the storey check (``storey``: no commit on a place several storeys share), and the
-baselines (``baselines.step``). Where the primary
-lane is about to enter COMMIT (and its run has searches left) the path is searched for rivals
-(``rivals.search``) and the window is decided again with them.
+baselines (``baselines.step``). Where the primary lane is about to enter COMMIT (and its run
+has searches left) the path is searched for rivals (``rivals.search``) and the window is
+decided again with them.
 
 A window with ``restart`` set begins a new odometry segment: the layer starts over (poses
 before and after an odometry jump are in incommensurable frames). A window with ``valid``
@@ -28,17 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import (
-    baselines,
-    certify,
-    drift,
-    gate,
-    machine,
-    rivals,
-    rule,
-    storey,
-    uniqueness,
-)
+from mfcl_jax.decision import baselines, certify, drift, gate, machine, rivals, rule, uniqueness
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import (
     Caps,
@@ -54,6 +44,7 @@ from mfcl_jax.decision.maps import DecisionMaps
 from mfcl_jax.decision.outcome import COMMIT, Decision
 from mfcl_jax.decision.params import DecisionParams
 from mfcl_jax.decision.state import LayerState, WindowEvidence, World
+from mfcl_jax.decision.storey import leave_shared
 from mfcl_jax.frontend.path_search import PlanFields
 from mfcl_jax.sparse_cond import sparse_cond
 
@@ -288,7 +279,7 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         v = drift.check(world.fields, poses, out.state == COMMIT, ev.end_points, ev.end_mask)
         held, out = machine.leave_drifted(held, out, v)
     # a commit on a place of several congruent storeys names no storey
-    held, out = storey.leave_shared(world.maps, held, out, ev.traj, ev.traj_mask, ev.X)
+    held, out = leave_shared(world.maps, held, out, ev.traj, ev.traj_mask, ev.X)
     n_rejected = state.n_rejected + bad
     out = Decision(**{**out.__dict__, "searched": jnp.broadcast_to(searched, out.state.shape),
                       "n_rejected": jnp.broadcast_to(n_rejected, out.state.shape),

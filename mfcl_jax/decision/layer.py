@@ -17,9 +17,8 @@ baselines (``baselines.step``). Where the primary lane is about to enter COMMIT 
 has searches left) the path is searched for rivals (``rivals.search``) and the window is
 decided again with them.
 
-A window with ``restart`` set begins a new odometry segment: the layer starts over (poses
-before and after an odometry jump are in incommensurable frames). A window with ``valid``
-false leaves the state as it was (padding of a batch).
+A window with ``restart`` begins a new odometry segment: the layer starts over (poses across
+a jump are in incommensurable frames); one with ``valid`` false (a batch's padding) is a no-op.
 """
 
 from __future__ import annotations

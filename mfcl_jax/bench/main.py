@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from mfcl_jax.bench import figures, report, suite
+from mfcl_jax.bench import report, suite
 from mfcl_jax.bench.calibration import commit_margins, fault_level_calibration, ratio_calibration
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.run import collect, decide_and_score
@@ -160,6 +160,8 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
     for name, df in tabs.items():
         write_table(df, out / Path(name).parent, Path(name).name)
     if draw:
+        from mfcl_jax.report import plots_benchmark as figures
+
         figures.save(figures.risk_coverage_figure(tabs["risk_coverage"]), out / "risk_coverage.png")
         if "commit_m" in runs:
             fig = figures.commit_distance_figure(runs, pols)
@@ -168,7 +170,7 @@ def write_tables(runs: pd.DataFrame, out, policies, draw: bool = True) -> dict:
             figures.save(fig, out / "risk_distance.png")
         for axis in FAULTS:
             if f"faults/{axis}" in tabs:
-                fig = figures.fault_figure(tabs[f"faults/{axis}"], axis)
+                fig = figures.fault_figure(tabs[f"faults/{axis}"], axis, FAULTS[axis])
                 figures.save(fig, out / "faults" / f"{axis}.png")
     return tabs
 

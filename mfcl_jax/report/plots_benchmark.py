@@ -1,5 +1,5 @@
-"""Benchmark figures: risk-coverage curves, commits against metres travelled, and one figure
-per fault axis."""
+"""The benchmark's figures: risk-coverage curves, commits against metres travelled, and one
+figure per fault axis (drawn from its tables; ``bench.main`` saves them)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-
-from mfcl_jax.bench.config import FAULTS  # noqa: E402
 
 __all__ = [
     "risk_coverage_figure",
@@ -142,9 +140,10 @@ def risk_distance_figure(overall: pd.DataFrame):
     return fig
 
 
-def fault_figure(table: pd.DataFrame, axis: str):
-    """False-commit rate and coverage against the level of one fault axis, per policy."""
-    levels = [str(v) for v in FAULTS[axis]]
+def fault_figure(table: pd.DataFrame, axis: str, levels):
+    """False-commit rate and coverage against the level of one fault axis (its ``levels``, in
+    order), per policy."""
+    levels = [str(v) for v in levels]
     # the levels at evenly spaced positions, labelled (strings as x data make matplotlib log a
     # line per call about numbers read as categories)
     x = np.arange(len(levels))

@@ -39,7 +39,6 @@ GROUPS = {
         "test_cli_live", "test_cli_status", "test_cli_signals", "test_cli_inputs", "test_cli_many",
         "test_traced", "test_plan_frame", "test_safe_output", "test_input_rates",
         "test_input_units", "test_input_bags", "test_ros2_node", "test_named_failures",
-        "test_storeys",
     ),
     "frontend": ("test_frontend", "test_frontend_kernels", "test_frontend_driver"),
     "benchmark": ("test_benchmark", "test_benchmark_tables", "test_launcher"),
@@ -49,7 +48,7 @@ GROUPS = {
 WEIGHTS = {
     "decision": 125, "robot": 110, "benchmark": 40, "frontend": 48, "test_study": 45,
     "mcl": 35, "test_real_floorplans": 13, "families": 10, "test_sim": 8,
-    "test_identifiability": 8, "test_path_bound": 18,
+    "test_identifiability": 8, "test_path_bound": 18, "test_storeys": 60,
 }  # fmt: skip
 _GROUP_OF = {f: g for g, files in GROUPS.items() for f in files}
 

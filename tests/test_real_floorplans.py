@@ -39,6 +39,14 @@ def test_duplex_without_a_storey_is_every_storey_side_by_side():
     assert st.place[1][2] == 0
     assert st.tile_at(c[0] + x, c[1] + y) == 1
     assert np.allclose(st.to_storey(1, (c[0] + x, c[1] + y, 0.3))[:2], c)
+    # what `mfcl` reads with --storey: still both storeys, the named one marked (by name or
+    # by elevation)
+    from mfcl_jax.floorplan.load import load_building
+
+    assert load_building([DUPLEX], storey="Level 2").storeys.given == 1
+    assert load_building([DUPLEX], storey=3.1).storeys.given == 1
+    with pytest.raises(FloorplanError, match="unknown storey 'Basement'"):
+        load_building([DUPLEX], storey="Basement")
 
 
 def test_duplex_level1():

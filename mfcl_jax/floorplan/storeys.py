@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mfcl_jax.floorplan.model import Door, Floorplan, FloorplanError, Room
+from mfcl_jax.se2 import compose_host, inverse_host
 
 __all__ = ["GAP", "Storeys", "congruence", "stack_storeys"]
 
@@ -38,19 +39,6 @@ GAP = 12.0
 _SHARE = 0.01
 _WALL_AREA = 0.05
 _TOL = 0.10
-
-
-def _compose(a, b) -> np.ndarray:
-    ax, ay, at = a
-    bx, by, bt = b
-    c, s = math.cos(at), math.sin(at)
-    return np.array([ax + c * bx - s * by, ay + s * bx + c * by, at + bt])
-
-
-def _inverse(a) -> np.ndarray:
-    x, y, t = a
-    c, s = math.cos(t), math.sin(t)
-    return np.array([-(c * x + s * y), s * x - c * y, -t])
 
 
 def _apart(a, b) -> float:
@@ -128,8 +116,8 @@ class Storeys:
 
     def to_storey(self, s: int, pose) -> tuple[float, float, float]:
         """A pose or anchor ``(x, y, theta)`` of the stacked plan in storey ``s``'s frame."""
-        x, y, t = _compose(_inverse(self.place[s]), np.asarray(pose, np.float64))
-        return float(x), float(y), float(math.atan2(math.sin(t), math.cos(t)))
+        x, y, t = compose_host(inverse_host(self.place[s]), pose)
+        return float(x), float(y), float(t)
 
 
 def _tile_grid(sizes: np.ndarray) -> list[tuple[float, float]]:
@@ -182,7 +170,7 @@ def stack_storeys(storeys: list[tuple[str, Floorplan]], name: str = "", source: 
     shift = np.array(
         [[cx - b[0], cy - b[1], 0.0] for (cx, cy), b in zip(corners, bounds, strict=True)]
     )
-    place = np.array([_compose(shift[tile[i]], to_rep[i]) for i in range(len(storeys))])
+    place = compose_host(shift[tile], to_rep)
     boxes = np.array([[b[0] + s[0], b[1] + s[1], b[2] + s[0], b[3] + s[1]]
                       for b, s in zip(bounds, shift, strict=True)])  # fmt: skip
     walls, thick, rooms, doors, polys = [], [], [], [], []

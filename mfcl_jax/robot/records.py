@@ -15,7 +15,7 @@ import numpy as np
 
 from mfcl_jax.decision import lattice
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES
-from mfcl_jax.se2 import wrap_host
+from mfcl_jax.se2 import compose_host, wrap_host
 
 __all__ = ["robot_pose", "record", "record_of", "unique_entry", "storey_view"]
 
@@ -78,7 +78,7 @@ def _storey_alternatives(alt, storeys, group, others, offset) -> list:
     first = alt[0]
     if group:
         local = (first["x"] - offset[0], first["y"] - offset[1], math.radians(first["yaw_deg"]))
-        stacked = _compose(storeys.place[group[0]], local)
+        stacked = compose_host(storeys.place[group[0]], local)
         for s in group:
             x, y, yaw = storeys.to_storey(s, stacked)
             out.append({"x": x + offset[0], "y": y + offset[1], "yaw_deg": math.degrees(yaw),
@@ -88,11 +88,6 @@ def _storey_alternatives(alt, storeys, group, others, offset) -> list:
     for a in alt[1:]:
         out.append(dict(a, storey=names[others[0]] if others else None))
     return out
-
-
-def _compose(a, b) -> tuple[float, float, float]:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
 
 
 def unique_entry(llr: float, needed: float) -> dict:

@@ -182,12 +182,12 @@ class VizWriter:
         st = self.floorplan.storeys
         if st is None or storey is None:
             return p
+        from mfcl_jax.se2 import compose_host  # only for a plan of several storeys
+
         ox, oy = (float(v) for v in self._offset)
-        px, py, pyaw = st.place[st.names.index(storey)]
-        x, y = float(p["x"]) - ox, float(p["y"]) - oy
-        c, s = math.cos(pyaw), math.sin(pyaw)
-        return {"x": px + c * x - s * y + ox, "y": py + s * x + c * y + oy,
-                "yaw_deg": float(p["yaw_deg"]) + math.degrees(pyaw)}  # fmt: skip
+        local = (float(p["x"]) - ox, float(p["y"]) - oy, math.radians(float(p["yaw_deg"])))
+        x, y, yaw = compose_host(st.place[st.names.index(storey)], local)
+        return {"x": float(x) + ox, "y": float(y) + oy, "yaw_deg": math.degrees(float(yaw))}
 
     def add(self, result, record: dict) -> None:
         """Adds one window.

@@ -20,15 +20,13 @@ places the robot within ``CORRECT_XY`` / ``CORRECT_YAW_DEG``; any other COMMIT i
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from mfcl_jax.score.decisions import pose_at
-from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
+from mfcl_jax.score.decisions import score_decisions
 
 __all__ = ["Walk", "tower_walks", "ifc_walks", "decide_walks", "judge", "summary_table"]
 
@@ -174,26 +172,22 @@ def judge(walk: Walk, records: list, apart: bool) -> dict:
     """One row: the walk's windows, COMMIT windows right and false, AMBIGUOUS(storey) windows,
     the first right commit (window, distance travelled) and the final state; ``apart``:
     whether the walk passes what tells its storey from the others (``tells_apart``)."""
-    truth = walk.rec.truth
-    right = false = amb_storey = 0
+    truth, seq = walk.rec.truth, walk.rec.seq
+    df = score_decisions(records, seq.times, seq.odometry, truth.times, truth.poses,
+                         where=walk.run)  # fmt: skip
+    amb_storey = int(((df["state"] == "AMBIGUOUS") & (df["symmetry"] == "storey")).sum())
+    com = df[df["state"] == "COMMIT"]
+    # a commit names the walk's storey: in the stacked plan its `storey`; on a plan of one
+    # storey, that storey (right unless it is the wrong one given: the fault)
+    named = com["storey"] if walk.plan.storeys is not None else walk.storey
+    ok = com["correct"].to_numpy(bool) & (named == walk.storey) & (not walk.fault)
+    ok = np.asarray(ok, bool)
+    right, false = int(ok.sum()), int((~ok).sum())
     first = None
-    dist = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(truth.poses[:, :2], axis=0).T))])
-    for d in records:
-        if d["state"] == "AMBIGUOUS" and d["symmetry"] == "storey":
-            amb_storey += 1
-        if d["state"] != "COMMIT":
-            continue
-        y = pose_at(truth.times, truth.poses, d["t"])[0]
-        p = d["pose"]
-        named = d.get("storey", walk.storey if walk.plan.storeys is None else None)
-        err = math.hypot(p["x"] - y[0], p["y"] - y[1])
-        dth = abs(math.remainder(math.radians(p["yaw_deg"]) - y[2], 2 * math.pi))
-        wrong_floor = bool(walk.fault) or named != walk.storey
-        ok = not wrong_floor and err < CORRECT_XY and math.degrees(dth) < CORRECT_YAW_DEG
-        right += ok
-        false += not ok
-        if ok and first is None:
-            first = (d["k"], float(np.interp(d["t"], truth.times, dist)))
+    if right:
+        dist = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(truth.poses[:, :2], axis=0).T))])
+        row = com[ok].iloc[0]
+        first = (int(row["k"]), float(np.interp(row["t"], truth.times, dist)))
     return dict(
         run=walk.run, family=walk.family, storey=walk.storey, congruent=walk.congruent,
         fault=walk.fault or "-", tells_apart=apart, windows=len(records), commit_right=right,

@@ -79,16 +79,13 @@ def _with_stub(fp: Floorplan, seg, name: str) -> Floorplan:
 
 
 def _half_turn(scene: Scene) -> Scene:
+    """The scene turned by 180 degrees about its footprint's centroid ``c``: p -> 2c - p."""
     c = np.asarray(scene.floorplan.footprint.centroid.coords[0])
-    g = np.array([2 * c[0], 2 * c[1], math.pi])  # p -> 2c - p
-    cs, sn = math.cos(g[2]), math.sin(g[2])
 
     def tf(p):
-        p = np.asarray(p, float)
-        return np.stack([cs * p[..., 0] - sn * p[..., 1] + g[0],
-                         sn * p[..., 0] + cs * p[..., 1] + g[1]], -1)  # fmt: skip
+        return 2 * c - np.asarray(p, float)
 
-    fp = scene.floorplan.transformed(g)
+    fp = scene.floorplan.transformed((2 * c[0], 2 * c[1], math.pi))
     walks = {k: tf(w) for k, w in scene.trajectories.items()}
     return Scene(fp.name, fp, tf(scene.clutter), walks, clutter_height=scene.clutter_height)
 

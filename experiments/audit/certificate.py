@@ -171,6 +171,9 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] in ("-h", "--help"):
+        print(__doc__)
+        return 0
     out = Path(argv[0] if argv else "results/certificate_audit")
     lanes = argv[1].split(",") if len(argv) > 1 else ["ours_unique", "ours_unique_a2"]
     bad = [x for x in lanes if x not in LANES]

@@ -28,7 +28,15 @@ import pandas as pd
 
 from mfcl_jax.score.summary import CORRECT_XY, CORRECT_YAW_DEG
 
-__all__ = ["EDGES", "LANE_ALPHAS", "ratio_calibration", "fault_level_calibration", "commit_margins"]
+__all__ = [
+    "EDGES",
+    "LANE_ALPHAS",
+    "GRID_MARGINS",
+    "ratio_calibration",
+    "fault_level_calibration",
+    "commit_margins",
+    "grid_calibration",
+]
 
 # the uniqueness lanes' error rates, by the suffix of their column in ``fault_level_calibration``
 LANE_ALPHAS = {"a1": 1e-1, "a2": 1e-2, "a3": 1e-3, "a4": 1e-4, "a6": 1e-6}
@@ -151,4 +159,64 @@ def commit_margins(windows: pd.DataFrame, policy: str = "ours") -> pd.DataFrame:
     rows = [row(fam, g) for fam, g in nom.groupby("family", sort=False)]
     rows.append(row("all nominal", nom))
     rows.append(row("all fault rows", w[w["fault"] != ""]))
+    return pd.DataFrame(rows)
+
+
+# the evidence grid's margins tried (nats of its pooled model, ``decision.grid``)
+GRID_MARGINS = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0)
+
+
+def grid_calibration(windows: pd.DataFrame, policy: str = "ours_grid_off",
+                     margins=GRID_MARGINS) -> pd.DataFrame:  # fmt: skip
+    """What a grid lane would do at each commit margin, read off a lane that never commits on
+    the grid (``policy``: it records the grid's margin at every window until its count rule
+    commits).
+
+    Per margin and per row group (nominal runs; every fault row; each fault axis), over the
+    runs: ``runs``, ``false`` (runs whose first window at or past the margin, unvetoed, had a
+    wrong anchor: a false commit that lane would make; the Wilson interval beside it),
+    ``committed`` (runs committed right, at that window or by the count rule), ``median_m``
+    (median metres travelled at the first right commit of identifiable runs) and
+    ``windows``/``wrong`` (every unvetoed window at or past the margin, and the wrong ones).
+    """
+    from mfcl_jax.score.summary import wilson
+
+    judged = "test_correct" if "test_correct" in windows else "correct"
+    w = windows[windows["policy"] == policy].copy()
+    w["fault"] = w["fault"].fillna("").astype(str)
+    w["level"] = w["level"].fillna("").astype(str) if "level" in w else ""
+    w = w.sort_values(["run", "k"])
+    tested = w["llr"].notna() & (w["llr"] > -np.inf) & w[judged].notna()
+    wrong = tested & ~w[judged].fillna(True).astype(bool)
+    groups = [("nominal", w["fault"] == ""), ("all fault rows", w["fault"] != "")]
+    groups += [(f"fault {a}", w["fault"] == a) for a in dict.fromkeys(w["fault"][w["fault"] != ""])]
+    rows = []
+    for m in margins:
+        past = tested & (w["llr"] >= m)
+        for name, sel in groups:
+            g = w[sel]
+            if g.empty:
+                continue
+            n_false = n_right = 0
+            metres = []
+            for _, r in g.groupby(["run", "fault", "level"], sort=False):
+                cross = r[past.loc[r.index]]
+                count = r[r["state"] == "COMMIT"]
+                first = min([x["k"].iloc[0] for x in (cross, count) if len(x)], default=None)
+                if first is None:
+                    continue
+                at = r[r["k"] == first].iloc[0]
+                bad = bool(wrong.loc[at.name]) if len(cross) and cross["k"].iloc[0] == first \
+                    else not bool(at["correct"])  # fmt: skip
+                n_false += bad
+                n_right += not bad
+                if not bad and r["ident_k"].astype(bool).any():
+                    metres.append(float(at["metres"]))
+            runs = g.groupby(["run", "fault", "level"], sort=False).ngroups
+            lo, hi = wilson(n_false, runs)
+            rows.append(dict(margin=m, group=name, runs=runs, false=n_false,
+                             false_upper=round(hi, 3), committed=n_right,
+                             median_m=round(float(np.median(metres)), 1) if metres else np.nan,
+                             windows=int((past & sel).sum()),
+                             wrong=int((past & sel & wrong).sum())))  # fmt: skip
     return pd.DataFrame(rows)

@@ -56,7 +56,9 @@ FAULTS = {
     "plan": ("no_doors", "rooms_only"),  # the plan without door features; rooms only
 }
 # every policy is run unless ``policies=`` says otherwise; the ``ours_unique*`` lanes are the
-# uniqueness test at five error rates (issue 28's trade-off of risk against metres)
+# uniqueness test at five error rates (issue 28's trade-off of risk against metres);
+# ``ours_grid`` commits on the evidence grid's margin (``decision.grid``), ``ours_grid_off``
+# records the margin and never commits on it (the calibration reads it)
 POLICIES = (
     "ours",
     "ours_unique",
@@ -64,6 +66,8 @@ POLICIES = (
     "ours_unique_a2",
     "ours_unique_a4",
     "ours_unique_a6",
+    "ours_grid",
+    "ours_grid_off",
     "paper",
     "no_probe",
     "consensus_only",

@@ -15,7 +15,12 @@ from pathlib import Path
 import pandas as pd
 
 from mfcl_jax.bench import report, suite
-from mfcl_jax.bench.calibration import commit_margins, fault_level_calibration, ratio_calibration
+from mfcl_jax.bench.calibration import (
+    commit_margins,
+    fault_level_calibration,
+    grid_calibration,
+    ratio_calibration,
+)
 from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
 from mfcl_jax.bench.run import collect, decide_and_score
 from mfcl_jax.io.atomic import atomic_write
@@ -135,6 +140,8 @@ def write_margins(out) -> pd.DataFrame:
     if "llr" in windows and (windows["policy"] == "ours_unique_a6").any():
         write_table(ratio_calibration(windows), out, "ratio_calibration")
         write_table(fault_level_calibration(windows), out, "ratio_calibration_faults")
+    if "llr" in windows and (windows["policy"] == "ours_grid_off").any():
+        write_table(grid_calibration(windows), out, "grid_calibration")
     return tab
 
 

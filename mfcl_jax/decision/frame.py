@@ -36,8 +36,8 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
     alt_yaw_deg`` hold the strongest competing explanation of an AMBIGUOUS decision
     (``Decision.competitor``), NaN otherwise. A rotational alias is reported by ``kind ==
     "rotation"``; its self-motion stays in ``Decision.alias_motion``. Where a lane runs the
-    uniqueness test (``spec.unique``), ``test_x, test_y, test_yaw_deg`` hold its best placement
-    where it ran (``llr`` not NaN).
+    uniqueness test or the evidence grid (``spec.unique``, ``spec.grid``), ``test_x, test_y,
+    test_yaw_deg`` hold the placement it would commit to where it ran (``llr`` not NaN).
     """
     d = dec
     r, k, n_lanes = d.state.shape
@@ -84,7 +84,7 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
             "llr": d.llr.ravel(),
         }
     )
-    if spec.unique:
+    if spec.unique or spec.grid:
         tested = ~np.isnan(d.llr.ravel())
         test = np.where(tested[:, None], d.test_anchor.reshape(-1, 3), np.nan)
         df["test_x"], df["test_y"] = test[:, 0], test[:, 1]

@@ -17,7 +17,11 @@ of them from one shared history:
 * ``ours_unique``: ``ours`` that also commits, whatever the count of windows, where the path
   seen so far is explained by one placement and by no other (``uniqueness``, error rate
   ``alpha = 1e-3``); ``ours_unique_a1``, ``_a2``, ``_a4``, ``_a6``: the same at ``alpha`` =
-  1e-1, 1e-2, 1e-4, 1e-6 (the test runs once per window for all of them).
+  1e-1, 1e-2, 1e-4, 1e-6 (the test runs once per window for all of them);
+* ``ours_grid``: ``ours`` that also commits where the evidence grid's leader (``grid``:
+  every placement's accumulated log-likelihood, grown one window at a time) leads every
+  other hill by ``GRID_MARGIN`` nats (``early``); ``ours_grid_off``: the grid kept and its
+  margin reported, never committed on (what ``bench.calibration.grid_calibration`` reads).
 
 A lane reads one *mode* of the shared core: the gate on or off and one symmetry set of the
 maps. The baselines (``baselines``) are lanes too, one per threshold set.
@@ -45,29 +49,35 @@ __all__ = [
     "make_lanes",
 ]
 
-# name: (use_gate, use_probe, use_cert, b_min, delta_min, symmetry set, uniqueness alpha);
-# floors < 0: from DecisionParams; symmetry set 1 is the strict congruence threshold; alpha 0:
-# no uniqueness test.
+# the evidence grid's commit margin (nats of its pooled model, ``grid``), calibrated on the
+# benchmark's windows (``bench.calibration``)
+GRID_MARGIN = 4.0
+GRID_OFF = 1e9  # a margin no grid reaches: the lane records the grid's margin, never commits on it
+# name: (use_gate, use_probe, use_cert, b_min, delta_min, symmetry set, uniqueness alpha,
+# grid margin); floors < 0: from DecisionParams; symmetry set 1 is the strict congruence
+# threshold; alpha 0: no uniqueness test; margin 0: no evidence-grid test.
 OURS_VARIANTS = {
-    "ours": (True, True, True, -1.0, -1.0, 0, 0.0),
-    "paper": (True, True, False, -1.0, -1.0, 0, 0.0),
-    "no_probe": (True, False, False, -1.0, -1.0, 0, 0.0),
-    "consensus_only": (False, False, False, -1.0, -1.0, 0, 0.0),
-    "ours_b2_d1": (True, True, True, 2.0, 1.0, 0, 0.0),
-    "ours_b4_d2": (True, True, True, 4.0, 2.0, 0, 0.0),
-    "ours_strict": (True, True, True, -1.0, -1.0, 1, 0.0),
-    "ours_unique": (True, True, True, -1.0, -1.0, 0, 1e-3),
-    "ours_unique_a1": (True, True, True, -1.0, -1.0, 0, 1e-1),
-    "ours_unique_a2": (True, True, True, -1.0, -1.0, 0, 1e-2),
-    "ours_unique_a4": (True, True, True, -1.0, -1.0, 0, 1e-4),
-    "ours_unique_a6": (True, True, True, -1.0, -1.0, 0, 1e-6),
+    "ours": (True, True, True, -1.0, -1.0, 0, 0.0, 0.0),
+    "paper": (True, True, False, -1.0, -1.0, 0, 0.0, 0.0),
+    "no_probe": (True, False, False, -1.0, -1.0, 0, 0.0, 0.0),
+    "consensus_only": (False, False, False, -1.0, -1.0, 0, 0.0, 0.0),
+    "ours_b2_d1": (True, True, True, 2.0, 1.0, 0, 0.0, 0.0),
+    "ours_b4_d2": (True, True, True, 4.0, 2.0, 0, 0.0, 0.0),
+    "ours_strict": (True, True, True, -1.0, -1.0, 1, 0.0, 0.0),
+    "ours_unique": (True, True, True, -1.0, -1.0, 0, 1e-3, 0.0),
+    "ours_unique_a1": (True, True, True, -1.0, -1.0, 0, 1e-1, 0.0),
+    "ours_unique_a2": (True, True, True, -1.0, -1.0, 0, 1e-2, 0.0),
+    "ours_unique_a4": (True, True, True, -1.0, -1.0, 0, 1e-4, 0.0),
+    "ours_unique_a6": (True, True, True, -1.0, -1.0, 0, 1e-6, 0.0),
+    "ours_grid": (True, True, True, -1.0, -1.0, 0, 0.0, GRID_MARGIN),
+    "ours_grid_off": (True, True, True, -1.0, -1.0, 0, 0.0, GRID_OFF),
 }
-# the variants the study and the tests decide by default: all but the uniqueness lanes
-COUNT_VARIANTS = tuple(n for n, v in OURS_VARIANTS.items() if v[6] == 0)
+# the variants the study and the tests decide by default: all but the uniqueness and grid lanes
+COUNT_VARIANTS = tuple(n for n, v in OURS_VARIANTS.items() if v[6] == 0 and v[7] == 0)
 # the uniqueness lanes by their error rate alpha
 UNIQUE_LANES = {v[6]: n for n, v in OURS_VARIANTS.items() if v[6] > 0}
 # what a robot may run: ours, alone or with the uniqueness test beside the count rule
-ROBOT_POLICIES = ("ours", *UNIQUE_LANES.values())
+ROBOT_POLICIES = ("ours", *UNIQUE_LANES.values(), "ours_grid")
 BASELINES = ("single_shot", "support", "confidence", "gate_only")
 STRICT_IOU = 0.98  # "exact copy up to 2 % modelling noise"
 
@@ -96,6 +106,8 @@ class Lanes:
     mode: jax.Array
     use_unique: jax.Array
     unique_llr: jax.Array  # log(1 / alpha) of the uniqueness test (0 where unused)
+    use_grid: jax.Array  # the evidence grid's lead commits (``grid``)
+    grid_margin: jax.Array  # its commit margin (0 where unused)
     confidence_ratio: jax.Array  # (S,) baselines
     support_ratio: jax.Array  # (S,)
 
@@ -119,12 +131,13 @@ class LaneSpec:
     n_sets: int  # threshold sets
     baselines: bool
     unique: bool = False  # some lane runs the uniqueness test
+    grid: bool = False  # some lane keeps the evidence grid
 
     @property
     def searches(self) -> bool:
-        """Some lane searches the plan for the path (rival search or uniqueness test): the
-        buildings need their search fields."""
-        return self.primary >= 0 or self.unique
+        """Some lane searches the plan for the path (rival search, uniqueness test, evidence
+        grid): the buildings need their search fields."""
+        return self.primary >= 0 or self.unique or self.grid
 
     @property
     def n_ours(self) -> int:
@@ -160,13 +173,13 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
     cols, names, lane_sets = [], [], []
     for i, s in enumerate(sets):
         for n in ours:
-            ug, up, uc, bm, dm, q, alpha = OURS_VARIANTS[n]
+            ug, up, uc, bm, dm, q, alpha, gm = OURS_VARIANTS[n]
             uu = alpha > 0
             bm = float(s.b_min) if bm < 0 else bm
             dm = float(s.delta_min) if dm < 0 else dm
             mode = modes.index((ug, syms.index(q)))
             thr = unique_threshold(n)
-            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode, uu, thr))
+            cols.append((ug, up, uc, bm, dm, float(s.cert_margin), mode, uu, thr, gm > 0, gm))
             names.append(n)
             lane_sets.append(i)
     c = list(zip(*cols, strict=True))
@@ -181,6 +194,8 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
         mode=np.asarray(c[6], np.int32),
         use_unique=np.asarray(c[7], bool),
         unique_llr=np.asarray(c[8], f32),
+        use_grid=np.asarray(c[9], bool),
+        grid_margin=np.asarray(c[10], f32),
         confidence_ratio=np.asarray([float(s.confidence_ratio) for s in sets], f32),
         support_ratio=np.asarray([float(s.support_ratio) for s in sets], f32),
     )
@@ -191,6 +206,7 @@ def make_lanes(params: DecisionParams | list[DecisionParams] | None = None,
     if primary is not None and primary in ours and OURS_VARIANTS[primary][2]:
         lane = primary_set * len(ours) + list(ours).index(primary)
     unique = any(OURS_VARIANTS[n][6] > 0 for n in ours)
+    grid = any(OURS_VARIANTS[n][7] > 0 for n in ours)
     spec = LaneSpec(tuple(names), tuple(lane_sets), modes, lane, min_iou, len(sets), baselines,
-                    unique)  # fmt: skip
+                    unique, grid)  # fmt: skip
     return sets[0], lanes_, spec

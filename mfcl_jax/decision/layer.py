@@ -27,7 +27,18 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import baselines, certify, drift, gate, machine, rivals, rule, uniqueness
+from mfcl_jax.decision import (
+    baselines,
+    certify,
+    drift,
+    early,
+    gate,
+    machine,
+    rivals,
+    rule,
+    uniqueness,
+)
+from mfcl_jax.decision import grid as G
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import (
     Caps,
@@ -69,6 +80,7 @@ def _fresh(world: World) -> LayerState:
         world, empty_history(world.caps), empty_path(world.caps), held,
         baselines.start(world.lanes.confidence_ratio.shape[0]), jnp.zeros((e, 3), jnp.float32),
         jnp.zeros(e, bool), jnp.int32(0), jnp.int32(0), jnp.int32(0),
+        G.empty(world.fields.g_hit.shape) if world.spec.grid else None,
     )  # fmt: skip
 
 
@@ -76,9 +88,10 @@ def init(maps: DecisionMaps, params: DecisionParams, caps: Caps, lanes: Lanes,
          spec: LaneSpec, fields: PlanFields | None = None, n_img: int = 0,
          rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS) -> LayerState:  # fmt: skip
     """The state before the first window (``lanes.lanes`` gives ``lanes``, ``spec``)."""
-    searches = spec.searches
-    if searches and (fields is None or n_img <= 0):
-        raise ValueError("init: a lane searches the plan for the path; pass fields= and n_img=")
+    if spec.searches and fields is None:
+        raise ValueError("init: a lane reads the plan's search fields; pass fields=")
+    if (spec.primary >= 0 or spec.unique) and n_img <= 0:
+        raise ValueError("init: a lane searches the plan for the path; pass n_img=")
     world = World(maps, params, lanes, fields, caps, spec, n_img, rival_params)
     return _fresh(world)
 
@@ -118,31 +131,12 @@ def _certify(ops):
                              world.params, riv, riv_ok, world.caps.cert_slots)  # fmt: skip
 
 
-def _champion(h: History, c):
-    """The newest window's champion (its best admitted candidate) and whether it has one."""
-    k = h.n - 1
-    adm = c.admitted[k]
-    j = jnp.argmax(jnp.where(adm, h.score[k], -jnp.inf))
-    return h.H[k, j], jnp.any(adm)
-
-
-def _unique(ops):
-    """The uniqueness test (``uniqueness``) on the history, against the first core mode's
-    consensus winner, its aliases and the newest window's champion."""
-    world, h, path, c = ops
-    g, pr = c.groups, c.probe_result
-    champ, champ_ok = _champion(h, c)
-    p = world.params
-    return uniqueness.uniqueness(
-        h, path, world.maps, world.fields, world.n_img, g.t_star, pr.aliases, pr.aliases_ok,
-        champ, champ_ok, g.b1.astype(jnp.float32), p.tau_c, p.delta_xy, p.delta_theta,
-    )  # fmt: skip
-
-
-def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq=None):
+def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq=None,
+            gstat=None):  # fmt: skip
     """Every lane's decision at the newest window, given the rivals: certification where
-    needed (and ``allow``ed), the rule, the uniqueness test's commit where a lane reads it,
-    the commit machine. Returns ``(held, reported)``."""
+    needed (and ``allow``ed), the rule, the early tests' commit where a lane reads one
+    (``early``: uniqueness, evidence grid), the commit machine. Returns ``(held,
+    reported)``."""
     k = h.n - 1
     p, ln = world.params, world.lanes
     modes = world.spec.modes
@@ -161,8 +155,9 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
     )(need_mode, cores)
     newest = (h.H[k], h.score[k], h.mask[k], h.X[k])
     uniq = uniqueness.skipped() if uniq is None else uniq
+    gstat = uniqueness.skipped() if gstat is None else gstat
 
-    def lane(m, ug, up, uc, bm, dm, mg, hl, nd, uu, ut):
+    def lane(m, ug, up, uc, bm, dm, mg, hl, nd, uu, ut, gu, gt):
         sym = mode_of(world.maps.sym, sym_of_mode[m])
         # a lane reads the certificate only where it needs one itself, so what it reports
         # does not depend on which other lanes share the evaluation
@@ -172,25 +167,27 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
         raw = rule.finish(mode_of(cores, m), ct, sym, p, ug, up, uc, bm, dm, mg)
         # the path is explained by one placement and no other: commit to it, whatever the
         # count of windows (the rule's own commit stands where the test does not hold)
-        holds = uniq.ran & ~uniq.vetoed & (uniq.llr >= ut)
-        early = uu & holds & (raw.state != COMMIT) & ~hl.committed
+        # a lane reads one early test: the uniqueness test or the evidence grid
+        t = jax.tree.map(lambda a, b: jnp.where(gu, a, b), gstat, uniq)
+        reads = (uu | gu) & t.ran
+        holds = reads & ~t.vetoed & (t.llr >= jnp.where(gu, gt, ut))
+        early_ = holds & (raw.state != COMMIT) & ~hl.committed
         raw = Decision(**{**raw.__dict__,
-            "state": jnp.where(early, COMMIT, raw.state),
-            "kind": jnp.where(early, 0, raw.kind),
-            "reason": jnp.where(early, 0, raw.reason),
-            "anchor": jnp.where(early, uniq.anchor, raw.anchor),
-            "tau": jnp.where(early, 0.0, raw.tau),
-            "has_competitor": raw.has_competitor & ~early,
+            "state": jnp.where(early_, COMMIT, raw.state),
+            "kind": jnp.where(early_, 0, raw.kind),
+            "reason": jnp.where(early_, 0, raw.reason),
+            "anchor": jnp.where(early_, t.anchor, raw.anchor),
+            "tau": jnp.where(early_, 0.0, raw.tau),
+            "has_competitor": raw.has_competitor & ~early_,
             # the ratio where the test ran and no veto held (-inf: vetoed), for reading
-            "llr": jnp.where(uu & uniq.ran, jnp.where(uniq.vetoed, -jnp.inf, uniq.llr),
-                             raw.llr),
-            "test_anchor": jnp.where(uu & uniq.ran, uniq.anchor, raw.test_anchor),
+            "llr": jnp.where(reads, jnp.where(t.vetoed, -jnp.inf, t.llr), raw.llr),
+            "test_anchor": jnp.where(reads, t.anchor, raw.test_anchor),
         })  # fmt: skip
         return machine.step(hl, raw, newest, p, ug)
 
     return jax.vmap(lane)(ln.mode, ln.use_gate, ln.use_probe, ln.use_cert, ln.b_min,
                           ln.delta_min, ln.cert_margin, held, need & allow,
-                          ln.use_unique, ln.unique_llr)  # fmt: skip
+                          ln.use_unique, ln.unique_llr, ln.use_grid, ln.grid_margin)  # fmt: skip
 
 
 # jitted (and inlined when the step compiles) so that the shape of its output and the loop
@@ -234,20 +231,14 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
     cons = h.walk.consistency()
     cores = _cores(world, h, path, cons)
     pl = world.spec.primary
-    u_tests = state.u_tests
-    uniq = None
+    u_tests, uniq, gstat, grid = state.u_tests, None, None, state.grid
+    c0 = jax.tree.map(lambda a: a[0], cores)  # mode 0: the gate on, default symmetries
     if world.spec.unique:
-        c0 = jax.tree.map(lambda a: a[0], cores)  # mode 0: the gate on, default symmetries
         open_lane = jnp.any(world.lanes.use_unique & ~state.held.committed)
-        need_u = open_lane & (u_tests < uniqueness.DEFAULT_UNIQUE.max_tests) & ev.valid
-        # the test's vetoes that need no search, checked first: a champion in the newest
-        # window that a consensus winner of two or more windows does not contradict
-        champ, champ_ok = _champion(h, c0)
-        cxy, cth = se2.distance_pair(champ, c0.groups.t_star)
-        apart = (cxy > p.delta_xy) | (cth > p.delta_theta)
-        need_u = need_u & champ_ok & ~((c0.groups.b1 >= 2) & apart)
-        uniq = sparse_cond(need_u, _unique, (world, h, path, c0))
-        u_tests = u_tests + need_u.astype(jnp.int32)
+        uniq, u_tests = early.unique_test(world, h, path, c0, u_tests, open_lane, ev.valid)
+    if world.spec.grid:
+        open_lane = jnp.any(world.lanes.use_grid & ~state.held.committed)
+        grid, gstat = early.grid_test(world, grid, h, path, c0, ev, open_lane)
 
     def one_pass(i, carry):
         # Pass 0 decides; where the primary lane is about to enter COMMIT (and searches are
@@ -255,7 +246,7 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         # so the program holds one copy of the decision.
         riv, riv_ok, searches, searched, held, out = carry
         allow = (i == 0) | searched
-        again = _decide_once(world, h, cores, state.held, riv, riv_ok, allow, uniq)
+        again = _decide_once(world, h, cores, state.held, riv, riv_ok, allow, uniq, gstat)
         held, out = _where(allow, again, (held, out))
         if pl >= 0:
             enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
@@ -266,7 +257,7 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         return riv, riv_ok, searches, searched, held, out
 
     shape = jax.eval_shape(_decide_once, world, h, cores, state.held, state.rivals,
-                           state.rivals_ok, jnp.bool_(True), uniq)[1]  # fmt: skip
+                           state.rivals_ok, jnp.bool_(True), uniq, gstat)[1]  # fmt: skip
     zeros = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shape)
     carry = (state.rivals, state.rivals_ok, state.searches, jnp.bool_(False), state.held, zeros)
     riv, riv_ok, searches, searched, held, out = jax.lax.fori_loop(
@@ -296,5 +287,5 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         out = jax.tree.map(lambda a, b: jnp.concatenate([a, b], axis=0), out, bdec)
     h = History(**{**h.__dict__, "support": support})
     new = LayerState(world, h, path, held, base, riv, riv_ok, searches, u_tests=u_tests,
-                     n_rejected=n_rejected)  # fmt: skip
+                     n_rejected=n_rejected, grid=grid)  # fmt: skip
     return _where(ev.valid, new, before), out

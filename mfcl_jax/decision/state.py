@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import jax
 
 from mfcl_jax.decision import baselines, machine, rivals
+from mfcl_jax.decision.grid import Grid
 from mfcl_jax.decision.history import Caps, History, Path
 from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import DecisionMaps
@@ -97,6 +98,7 @@ class LayerState:
     searches: jax.Array  # () int32
     u_tests: jax.Array  # () int32 uniqueness tests in this odometry segment
     n_rejected: jax.Array  # () int32 non-finite candidates rejected so far
+    grid: Grid | None = None  # the evidence grid (``grid``; None: no lane keeps one)
 
 
 for _cls in (WindowEvidence, LayerState):

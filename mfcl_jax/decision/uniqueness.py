@@ -44,7 +44,16 @@ from mfcl_jax.decision import gate, rivals
 from mfcl_jax.frontend import path_llr
 from mfcl_jax.frontend.path_llr import LLRParams
 
-__all__ = ["UniqueParams", "UniqStats", "DEFAULT_UNIQUE", "uniqueness", "fit", "edge", "skipped"]
+__all__ = [
+    "UniqueParams",
+    "UniqStats",
+    "DEFAULT_UNIQUE",
+    "uniqueness",
+    "fit",
+    "edge",
+    "skipped",
+    "vetoes",
+]
 
 
 @dataclass(frozen=True)
@@ -193,6 +202,17 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     A, lc = jnp.concatenate([A, e[None]]), jnp.concatenate([lc, le[None]])
     j = jnp.argmax(lc)
     llr = L[i] - lc[j]
+    vetoed, c_gate = vetoes(best, path, maps, champion, champion_ok, t_star, winner_b1, tau_c,
+                            delta_xy, delta_theta)  # fmt: skip
+    return UniqStats(best, A[j], llr, vetoed | ~jnp.any(ok), c_gate, jnp.bool_(True))
+
+
+def vetoes(best, path, maps, champion, champion_ok, t_star, winner_b1, tau_c, delta_xy,
+           delta_theta):  # fmt: skip
+    """``(vetoed, c_gate)``: the layer's checks on an early commit to ``best``: it passes the
+    feasibility gate over the path, the newest window's champion agrees with it, and no
+    consensus winner of two or more windows disagrees (anchors, within the grouping
+    tolerances ``delta_xy``, ``delta_theta``)."""
     pvalid = jnp.arange(path.pose.shape[0]) < path.n
     walk = gate.extend_walk(maps, best[None], path.pose, pvalid, gate.start_walk((1,)))
     c_gate = walk.consistency()[0]
@@ -200,5 +220,4 @@ def uniqueness(h, path, maps, fields, n_img: int, t_star, aliases, aliases_ok, c
     agrees = champion_ok & (cxy <= delta_xy) & (cth <= delta_theta)
     txy, tth = se2.distance_pair(t_star, best)
     contradicted = (winner_b1 >= 2) & ((txy > delta_xy) | (tth > delta_theta))
-    vetoed = (c_gate < tau_c) | ~agrees | contradicted | ~jnp.any(ok)
-    return UniqStats(best, A[j], llr, vetoed, c_gate, jnp.bool_(True))
+    return (c_gate < tau_c) | ~agrees | contradicted, c_gate

@@ -9,6 +9,7 @@ reads a field at points. Placements are evaluated on the same fields (``placemen
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import jax
@@ -35,6 +36,9 @@ class SearchParams:
     nms_deg: float = 6.0
 
 
+GRID_RES = 0.3  # m: the evidence grid's cell (``decision.grid``)
+
+
 @dataclass(frozen=True)
 class PlanFields:
     """The plan as the search reads it (pytree; padded to a bucket for shared compilation).
@@ -47,6 +51,12 @@ class PlanFields:
         c_hit, c_bad: ``(Hc, Wc)`` the coarse fields; c_res: their cell (m, static): the fine
             cell times the block factor nearest to ``coarse_res``.
         outside: ``()`` the obstacle field off the grid (``Rasters.outside``).
+        g_hit, g_free: ``(Hg, Wg)`` the evidence grid's fields (``decision.grid``): a
+            return's and a free sample's log-likelihood (``path_llr``'s model), max-pooled
+            over the reach of a grid cell (+-``g_res`` / 2, ``g_res`` the fine cell times the
+            block factor nearest to ``GRID_RES``) and read at the cells' centres, less their
+            values off the plan ``g_off`` ``(2,)`` (so the FFT's zero padding is "off the
+            plan"); g_res: their cell (m, static).
     """
 
     origin: jax.Array
@@ -56,14 +66,29 @@ class PlanFields:
     c_hit: jax.Array
     c_bad: jax.Array
     outside: jax.Array
+    g_hit: jax.Array
+    g_free: jax.Array
+    g_off: jax.Array
     res: float = 0.10
     c_res: float = 0.40
+    g_res: float = 0.30
 
 
 jax.tree_util.register_dataclass(
     PlanFields,
-    data_fields=["origin", "dist", "hit", "bad", "c_hit", "c_bad", "outside"],
-    meta_fields=["res", "c_res"],
+    data_fields=[
+        "origin",
+        "dist",
+        "hit",
+        "bad",
+        "c_hit",
+        "c_bad",
+        "outside",
+        "g_hit",
+        "g_free",
+        "g_off",
+    ],
+    meta_fields=["res", "c_res", "g_res"],
 )
 
 
@@ -81,6 +106,8 @@ def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> P
     bad = np.pad(bad, ((0, H - h), (0, W - w)), constant_values=out)
     c_d = dist.reshape(H // f, f, W // f, f).min(axis=(1, 3))
     c_b = bad.reshape(H // f, f, W // f, f).mean(axis=(1, 3))
+    fg = max(1, int(round(GRID_RES / r.res)))
+    g_hit, g_free, g_off = _grid_fields(dist, bad, out, fg)
     return PlanFields(
         origin=np.asarray(r.origin, np.float32),
         dist=dist.astype(np.float32),
@@ -89,9 +116,32 @@ def plan_fields(rasters, params: SearchParams = SearchParams(), shape=None) -> P
         c_hit=np.exp(-(c_d**2) / (2 * params.sigma_coarse**2)).astype(np.float32),
         c_bad=c_b.astype(np.float32),
         outside=np.float32(out),
+        g_hit=g_hit,
+        g_free=g_free,
+        g_off=g_off,
         res=float(r.res),
         c_res=float(r.res * f),
+        g_res=float(r.res * fg),
     )
+
+
+def _grid_fields(dist, bad, out: float, f: int):
+    """The evidence grid's fields (``PlanFields.g_hit``, ``g_free``, ``g_off``) from the fine
+    distance and obstacle rasters, block factor ``f``."""
+    from scipy import ndimage
+
+    from mfcl_jax.frontend.path_llr import LLRParams
+
+    p = LLRParams()
+    hit = np.log((1.0 - p.z_rand) * np.exp(-(dist**2) / (2 * p.sigma**2)) + p.z_rand)
+    free = np.log(1.0 - p.z_block * np.clip(bad, 0.0, 1.0))
+    # the reach of a cell's placements: +-half its diagonal (a square, separable)
+    k = 2 * int(math.ceil(f / 2.0 - 0.5)) + 1
+    centres = np.arange(f // 2, dist.shape[0], f), np.arange(f // 2, dist.shape[1], f)
+    off = np.asarray([math.log(p.z_rand), math.log(1.0 - p.z_block * min(max(out, 0.0), 1.0))])
+    g = [ndimage.maximum_filter(a, size=k, mode="nearest")[np.ix_(*centres)] - o
+         for a, o in zip((hit, free), off, strict=True)]  # fmt: skip
+    return g[0].astype(np.float32), g[1].astype(np.float32), off.astype(np.float32)
 
 
 def sample_field(field, origin, res, xy, fill):

@@ -238,9 +238,11 @@ def test_early_commit_selects_the_uniqueness_lane_of_its_alpha(capsys):
     )
     p = localize_params(parse(["localize", "d"]))
     assert p.policy == "ours" and p.unique_llr is None
+    p = localize_params(parse(["localize", "d", "--early-commit", "grid"]))
+    assert p.policy == "ours_grid" and p.unique_llr == 4.0  # the grid lane, at its margin
     with pytest.raises(SystemExit):
         parse(["localize", "d", "--early-commit", "0.05"])
-    assert "invalid choice: 0.05" in capsys.readouterr().err
+    assert "'0.05' is neither 'grid' nor one of" in capsys.readouterr().err
     with pytest.raises(ValueError, match="policy='paper', expected one of"):
         LocalizeParams(policy="paper")
     # the robot builds its one lane from the policy: the test on, at log(1 / alpha)
@@ -248,11 +250,13 @@ def test_early_commit_selects_the_uniqueness_lane_of_its_alpha(capsys):
     from mfcl_jax.sim.scenes import symmetric_bays
 
     fp = symmetric_bays().floorplan
-    for args, unique, llr in ((["--early-commit", "1e-2"], True, math.log(1e2)), ([], False, 0)):
+    for args, unique, llr in ((["--early-commit", "1e-2"], True, math.log(1e2)), ([], False, 0),
+                              (["--early-commit", "grid"], False, 0)):  # fmt: skip
         loc = Localizer(fp, localize_params(parse(["localize", "d", *args])))
         lanes, spec = loc._init[3], loc._init[4]  # (maps, params, caps, lanes, spec, ...)
         assert spec.unique == unique and len(spec.names) == 1
         assert float(lanes.unique_llr[0]) == pytest.approx(llr, rel=1e-6)
+        assert spec.grid == ("grid" in args) and float(lanes.grid_margin[0]) == 4.0 * spec.grid
 
 
 def test_the_uniqueness_ratio_is_written_and_shown():

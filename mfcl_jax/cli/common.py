@@ -32,7 +32,8 @@ def localize_params(args):
     if getattr(args, "early_commit", None) is not None:
         from mfcl_jax.decision.lanes import UNIQUE_LANES
 
-        p = replace(p, policy=UNIQUE_LANES[args.early_commit])
+        e = args.early_commit
+        p = replace(p, policy="ours_grid" if e == "grid" else UNIQUE_LANES[e])
     if getattr(args, "no_scan_match", False):
         sm = replace(p.window.scan_match, enabled=False)
         p = replace(p, window=replace(p.window, scan_match=sm))

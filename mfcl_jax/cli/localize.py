@@ -20,6 +20,21 @@ EXIT_BAD_INPUT = 2  # ``mfcl_jax.cli.main``: a bad input or an output that canno
 # in step: this module imports no JAX, so ``mfcl --help`` stays light)
 EARLY_COMMIT_ALPHAS = (1e-1, 1e-2, 1e-3, 1e-4, 1e-6)
 
+
+def _early_commit(value: str):
+    """``--early-commit``: ``grid`` or one of ``EARLY_COMMIT_ALPHAS``."""
+    if value == "grid":
+        return value
+    try:
+        alpha = float(value)
+    except ValueError:
+        alpha = None
+    if alpha not in EARLY_COMMIT_ALPHAS:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is neither 'grid' nor one of {', '.join(map(str, EARLY_COMMIT_ALPHAS))}"
+        )
+    return alpha
+
 LOCALIZE_EPILOG = """\
 decisions file (--out, JSON lines; one line per window):
   k is the window's index over the whole recording (it never starts again); segment is
@@ -59,13 +74,13 @@ def add_localize_command(subparsers) -> None:
     lo.add_argument("--d-s", type=float, default=6.0, help="window length in metres (6)")
     lo.add_argument(
         "--early-commit",
-        type=float,
-        choices=EARLY_COMMIT_ALPHAS,
-        metavar="ALPHA",
+        type=_early_commit,
+        metavar="ALPHA|grid",
         help="also commit as soon as one placement explains the whole path better than every "
         "placement more than 1 m / 5 deg from it by a likelihood ratio of 1/ALPHA (the "
-        "uniqueness test; ALPHA one of 0.1, 0.01, 0.001, 1e-4, 1e-6; status lines show the "
-        "ratio as L=). Earlier commits at a risk the benchmark measures (README); default: "
+        "uniqueness test; ALPHA one of 0.1, 0.01, 0.001, 1e-4, 1e-6), or ('grid') where the "
+        "evidence grid's leader leads every other placement by 4 nats; status lines show the "
+        "ratio as L=. Earlier commits at a risk the benchmark measures (README); default: "
         "off, commit only when three windows that share no scan agree",
     )
     lo.add_argument(

@@ -42,6 +42,7 @@ __all__ = [
     "UNIQUE_LANES",
     "ROBOT_POLICIES",
     "unique_threshold",
+    "early_threshold",
     "BASELINES",
     "STRICT_IOU",
     "Lanes",
@@ -87,6 +88,12 @@ def unique_threshold(name: str) -> float:
     commits; 0 for a variant without the test."""
     alpha = OURS_VARIANTS[name][6]
     return float(np.log(1.0 / alpha)) if alpha > 0 else 0.0
+
+
+def early_threshold(name: str) -> float:
+    """What variant ``name``'s early test must reach to commit: ``log(1 / alpha)`` of the
+    uniqueness test, or the evidence grid's margin; 0 for a variant without one."""
+    return float(OURS_VARIANTS[name][7]) or unique_threshold(name)
 
 
 @dataclass(frozen=True)

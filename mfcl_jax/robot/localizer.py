@@ -21,7 +21,7 @@ import numpy as np
 from mfcl_jax import windows as W
 from mfcl_jax.decision import layer, rivals
 from mfcl_jax.decision.history import Caps
-from mfcl_jax.decision.lanes import ROBOT_POLICIES, make_lanes, unique_threshold
+from mfcl_jax.decision.lanes import ROBOT_POLICIES, early_threshold, make_lanes
 from mfcl_jax.decision.maps import decision_maps
 from mfcl_jax.decision.outcome import Decision
 from mfcl_jax.decision.params import DecisionParams
@@ -71,7 +71,7 @@ class LocalizeParams:
     @property
     def unique_llr(self) -> float | None:
         """``log(1 / alpha)`` a uniqueness lane commits at; None for ``ours``."""
-        return unique_threshold(self.policy) or None
+        return early_threshold(self.policy) or None
 
     @property
     def d_s(self) -> float:

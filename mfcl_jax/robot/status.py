@@ -149,7 +149,8 @@ TERM_TEXT = {
     "not object (L=vetoed where one did). L=- where the test did not run at that window "
     "(it runs where the newest window has a best registration that a consensus of two or "
     "more windows does not contradict, at most 8 times per odometry segment; after that only "
-    "the count of windows commits).",
+    "the count of windows commits). With --early-commit grid: the evidence grid's margin, "
+    "its best placement against the best other one (threshold 4 nats; read at every window).",
 }
 
 EXAMPLE = (

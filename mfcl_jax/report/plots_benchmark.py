@@ -67,7 +67,7 @@ def risk_coverage_figure(rc: pd.DataFrame, title: str = ""):
 
 # The policies of the distance figure (those present): our layer, two uniqueness lanes (1e-3,
 # 1e-1), the paper's layer, the particle filter.
-DISTANCE_POLICIES = ("ours", "ours_unique", "ours_unique_a1", "paper", "mcl")
+DISTANCE_POLICIES = ("ours", "ours_unique", "ours_unique_a1", "ours_grid", "paper", "mcl")
 
 
 def _cumulative(ax, metres, n: int, x_end: float, label: str, style: dict) -> None:

@@ -141,7 +141,10 @@ def write_margins(out) -> pd.DataFrame:
         write_table(ratio_calibration(windows), out, "ratio_calibration")
         write_table(fault_level_calibration(windows), out, "ratio_calibration_faults")
     if "llr" in windows and (windows["policy"] == "ours_grid_off").any():
-        write_table(grid_calibration(windows), out, "grid_calibration")
+        cal = grid_calibration(windows)
+        write_table(cal, out, "grid_calibration")
+        both = cal["group"].isin(["nominal", "all fault rows"])
+        write_table(cal[both].reset_index(drop=True), out, "grid_calibration_summary")
     return tab
 
 

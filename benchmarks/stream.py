@@ -6,7 +6,8 @@ that the history keeps growing with new anchors. The layer runs with the robot's
 (``robot.localizer.ROBOT_CAPS``: 64 windows, 1024 keyframes), so a long run's older windows
 leave the history and every update does the same work. The first update compiles (reported
 apart, ``compile``); the updates that ran the rival search (the layer about to commit), the
-certification or the uniqueness test (``--policy ours_unique*``, ``mfcl localize
+certification, the uniqueness test (``--policy ours_unique*``) or the evidence grid
+(``--policy ours_grid``: it runs at every window until the lane commits; ``mfcl localize
 --early-commit``) are listed apart; every other update is timed as a run (wall and process
 CPU). Medians per history bin. Writes ``results/bench_stream.csv``, ``.md`` and ``.png``
 (``bench_stream_<policy>.*`` for another policy).
@@ -114,8 +115,9 @@ def main(argv=None) -> int:
     print(f"certified or searched updates: {len(extra)}, median "
           f"{extra['wall_ms'].median():.1f} ms")  # fmt: skip
     tested = df[(df["window"] > 1) & df["tested"]]
+    test_name = "evidence grid" if "grid" in a.policy else "uniqueness test"
     if len(tested):
-        print(f"updates with the uniqueness test: {len(tested)}, median "
+        print(f"updates with the {test_name}: {len(tested)}, median "
               f"{tested['wall_ms'].median():.1f} ms")  # fmt: skip
     print(run.round(2).to_string())
     load = os.getloadavg()[0]
@@ -124,14 +126,14 @@ def main(argv=None) -> int:
     table.loc[len(table)] = ["compile (first update)", df["wall_ms"].iloc[0], None, 1]
     table.loc[len(table)] = ["certified or searched", extra["wall_ms"].median(), None, len(extra)]
     if len(tested):
-        table.loc[len(table)] = ["uniqueness test", tested["wall_ms"].median(), None, len(tested)]
+        table.loc[len(table)] = [test_name, tested["wall_ms"].median(), None, len(tested)]
     note = f"\n\nMedians in ms; load average {load:.2f} on {os.cpu_count()} cores at the end.\n"
     out.with_suffix(".md").write_text(table.to_markdown(index=False, floatfmt=".1f") + note)
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(plain["window"], plain["wall_ms"], ".", ms=3, label="update (wall)")
     ax.plot(extra["window"], extra["wall_ms"], "x", ms=4, label="with certification/search")
     if len(tested):
-        ax.plot(tested["window"], tested["wall_ms"], "+", ms=5, label="with the uniqueness test")
+        ax.plot(tested["window"], tested["wall_ms"], "+", ms=5, label=f"with the {test_name}")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("windows of history")

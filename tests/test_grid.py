@@ -11,7 +11,8 @@ import numpy as np
 from mfcl_jax import se2
 from mfcl_jax.decision import grid as G
 from mfcl_jax.frontend.path_fields import plan_fields, sample_field
-from mfcl_jax.sim.synthetic import PITCH, make_run, row_of_rooms, walk
+from mfcl_jax.sim.synthetic import PITCH, row_of_rooms
+from tests._walks import congruent_walk, unique_walk
 
 NO_DRIFT = G.GridParams(drift_xy=0.0, drift_deg=0.0, n_img=64)
 
@@ -73,15 +74,6 @@ COMMIT = 2
 FIELDS = (256, 512)  # one field shape for both test buildings
 
 
-def _truth_only(k, y):
-    return [(y, 1.0)]
-
-
-def _shifted_too(k, y):
-    """The truth and its copy one room along, scored alike (as a congruent row gives)."""
-    return [(y, 1.0), (np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), y)), 1.0)]
-
-
 def _world(fp):
     from mfcl_jax.decision import decision_maps, layer
     from mfcl_jax.decision.maps import pad_maps
@@ -106,20 +98,10 @@ def _robot(fp, run):
     return stepwise(state, evidence_of(run))[1]
 
 
-def _unique_run():
-    fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))
-    there_and_back = [[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5], [18.0, 2.5], [11.0, 2.5],
-                      [6.0, 3.5], [1.5, 3.5]]  # fmt: skip
-    run = make_run(walk(there_and_back), A, K, _truth_only, J=J, fp=fp)
-    # windows sharing scans with the two before them: the count commits at window 6 at best
-    run["window_start"] = np.concatenate([[0, 0, 0], run["window_end"][:-3] + 1]).astype(np.int32)
-    return fp, run
-
-
 def test_a_unique_path_commits_on_the_grid_before_the_count_and_at_the_truth():
     from mfcl_jax.decision.lanes import GRID_MARGIN
 
-    fp, run = _unique_run()
+    fp, run = unique_walk(A, K, J)
     d = _robot(fp, run)
     ours, grid = d.state[:, 0], d.state[:, 1]
     assert (grid == COMMIT).any(), (grid.tolist(), d.llr[:, 1].tolist())
@@ -137,10 +119,7 @@ def test_a_unique_path_commits_on_the_grid_before_the_count_and_at_the_truth():
 def test_a_walk_inside_one_of_four_congruent_rooms_never_commits_on_the_grid():
     from mfcl_jax.decision.lanes import GRID_MARGIN
 
-    fp = row_of_rooms()  # four congruent rooms, doors at the same place
-    traj = walk([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0], [2.0, 4.0], [2.0, 1.2]])
-    traj[:, 0] += PITCH
-    run = make_run(traj, A, K, _shifted_too, J=J, fp=fp)
+    fp, run = congruent_walk(A, K, J)  # four congruent rooms, doors at the same place
     d = _robot(fp, run)
     assert not (d.state[:, 1] == COMMIT).any(), (d.state[:, 1].tolist(), d.llr[:, 1].tolist())
     ran = np.isfinite(d.llr[:, 1])
@@ -154,7 +133,7 @@ def test_the_robot_and_the_batch_decide_the_grid_lane_alike():
     from mfcl_jax.decision.runs import scan_runs
     from tests._layer import CAPS, evidence_of
 
-    fp, run = _unique_run()
+    fp, run = unique_walk(A, K, J)
     robot = _robot(fp, run)
     _, (maps, fields, p, lanes, spec) = _world(fp)
     ev = jax.tree.map(lambda a: np.stack([a, a]), evidence_of(run))  # two runs, one building

@@ -10,22 +10,14 @@ from mfcl_jax import se2
 from mfcl_jax.decision import decision_maps, layer
 from mfcl_jax.decision.maps import pad_maps
 from mfcl_jax.decision.rivals import image_size, rival_fields
-from mfcl_jax.sim.synthetic import PITCH, make_run, row_of_rooms, walk
+from mfcl_jax.sim.synthetic import PITCH, row_of_rooms
 from tests._layer import CAPS, GRID, evidence_of, lanes_of, stepwise
+from tests._walks import congruent_walk, unique_walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 K, J = 8, 16
 COMMIT = 2
 FIELDS = (256, 512)  # the rival search's field shape of both test buildings
-
-
-def truth_only(k, y):
-    return [(y, 1.0)]
-
-
-def shifted_too(k, y):
-    """The truth and its copy one room along, scored alike (as a congruent row gives)."""
-    return [(y, 1.0), (np.asarray(se2.compose(np.array([PITCH, 0.0, 0.0]), y)), 1.0)]
 
 
 def _decide(fp, run):
@@ -44,13 +36,7 @@ def _decide(fp, run):
 
 def test_a_unique_path_commits_no_later_than_the_count_and_at_the_truth():
     # rooms of three different lengths: a walk through all of them fits one place only
-    fp = row_of_rooms(widths=(PITCH, 9.0, 5.5))
-    there_and_back = [[1.5, 1.5], [6.0, 1.5], [6.0, 3.5], [11.0, 2.5], [18.0, 2.5], [11.0, 2.5],
-                      [6.0, 3.5], [1.5, 3.5]]  # fmt: skip
-    run = make_run(walk(there_and_back), A, K, truth_only, J=J, fp=fp)
-    # windows that share scans with the two before them, as a step of d_s / 3 cuts them: the
-    # count needs windows 0, 3 and 6 (scan-disjoint) before it commits
-    run["window_start"] = np.concatenate([[0, 0, 0], run["window_end"][:-3] + 1]).astype(np.int32)
+    fp, run = unique_walk(A, K, J)
     d = _decide(fp, run)
     ours, uniq = d.state[:, 0], d.state[:, 1]
     assert (uniq == COMMIT).any(), (uniq.tolist(), d.llr[:, 1].tolist())
@@ -71,10 +57,7 @@ def test_a_unique_path_commits_no_later_than_the_count_and_at_the_truth():
 
 
 def test_a_walk_inside_one_of_four_congruent_rooms_never_commits():
-    fp = row_of_rooms()  # four congruent rooms, doors at the same place
-    traj = walk([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0], [2.0, 4.0], [2.0, 1.2]])
-    traj[:, 0] += PITCH
-    run = make_run(traj, A, K, shifted_too, J=J, fp=fp)
+    fp, run = congruent_walk(A, K, J)  # four congruent rooms, doors at the same place
     d = _decide(fp, run)
     assert not (d.state[:, 1] == COMMIT).any(), (d.state[:, 1].tolist(), d.llr[:, 1].tolist())
     ran = np.isfinite(d.llr[:, 1])

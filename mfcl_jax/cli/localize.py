@@ -35,6 +35,7 @@ def _early_commit(value: str):
         )
     return alpha
 
+
 LOCALIZE_EPILOG = """\
 decisions file (--out, JSON lines; one line per window):
   k is the window's index over the whole recording (it never starts again); segment is

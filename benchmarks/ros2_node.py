@@ -40,7 +40,6 @@ import pathlib
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 import numpy as np
@@ -49,6 +48,7 @@ import pandas as pd
 from mfcl_jax.sources.data import data_dir
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+from benchmarks._ros2_sides import Memory, Nav2Side  # noqa: E402
 from benchmarks._versions_cases import OFFICE_IFC, WAYPOINTS  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -64,64 +64,6 @@ LOOPBACK = (
 
 def log(text: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {text}", flush=True)
-
-
-class Nav2Side:
-    """Reads ``/mfcl/status`` and ``/initialpose``, stamping each arrival (monotonic s)."""
-
-    def __init__(self):
-        from mfcl_jax.ros2 import messages as M
-        from mfcl_jax.ros2.dds import LATCHED, RELIABLE, Bus, take
-
-        bus = Bus()
-        self._status = bus.reader("/mfcl/status", M.String, RELIABLE)
-        self._pose = bus.reader("/initialpose", M.PoseWithCovarianceStamped, LATCHED)
-        self._wait = bus.waiter([self._status, self._pose])
-        self.status, self.poses, self._stop = [], [], False
-
-        def loop():
-            while not self._stop:
-                self._wait(0.05)
-                now = time.monotonic()
-                self.status += [(now, json.loads(s.data)) for s in take(self._status)]
-                self.poses += [(now, p) for p in take(self._pose)]
-
-        self._thread = threading.Thread(target=loop, daemon=True)
-        self._thread.start()
-
-    def windows(self):
-        return [(w, s) for w, s in self.status if "event" not in s]
-
-    def close(self):
-        self._stop = True
-        self._thread.join()
-
-
-class Memory:
-    """The resident memory of a process every ``every`` seconds (MiB, from /proc)."""
-
-    def __init__(self, pid: int, every: float = 5.0):
-        self.rows, self._stop = [], False
-        t0 = time.monotonic()
-
-        def loop():
-            while not self._stop:
-                try:
-                    text = pathlib.Path(f"/proc/{pid}/status").read_text()
-                except OSError:
-                    return
-                rss = [x for x in text.splitlines() if x.startswith("VmRSS")]
-                if not rss:  # the process has ended
-                    return
-                kb = int(rss[0].split()[1])
-                self.rows.append((time.monotonic() - t0, kb / 1024))
-                time.sleep(every)
-
-        self._thread = threading.Thread(target=loop, daemon=True)
-        self._thread.start()
-
-    def close(self):
-        self._stop = True
 
 
 def replay(name, plan, messages, args_extra, env, seconds=None):

@@ -34,3 +34,27 @@ def congruent_walk(anchor, n_windows: int, n_cands: int):
     traj = walk([[2.0, 1.2], [5.0, 1.2], [5.0, 4.0], [2.0, 4.0], [2.0, 1.2]])
     traj[:, 0] += PITCH
     return fp, make_run(traj, anchor, n_windows, _shifted_too, J=n_cands, fp=fp)
+
+
+FIELDS = (256, 512)  # the search fields' shape of both walks' buildings: one program for both
+
+
+def early_state(fp, ours, n_img: int = 0):
+    """The layer before the first window on ``fp`` for lanes ``ours`` (no baselines, no rival
+    search), with the plan's search fields: ``(state, (maps, fields, params, lanes, spec))``."""
+    import jax
+    import jax.numpy as jnp
+
+    from mfcl_jax.decision import decision_maps, layer
+    from mfcl_jax.decision.maps import pad_maps
+    from mfcl_jax.decision.rivals import rival_fields
+    from mfcl_jax.sim.synthetic import GRID
+    from tests._layer import CAPS, lanes_of
+
+    p, lanes, spec = lanes_of(None, ours=ours, baselines=False)
+    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4, n_motions=8,
+                                              n_offsets=32))  # fmt: skip
+    fields = jax.tree.map(jnp.asarray, rival_fields(fp, shape=FIELDS))
+    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
+                       fields, n_img)  # fmt: skip
+    return state, (maps, fields, p, lanes, spec)

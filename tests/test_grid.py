@@ -12,7 +12,7 @@ from mfcl_jax import se2
 from mfcl_jax.decision import grid as G
 from mfcl_jax.frontend.path_fields import plan_fields, sample_field
 from mfcl_jax.sim.synthetic import PITCH, row_of_rooms
-from tests._walks import congruent_walk, unique_walk
+from tests._walks import congruent_walk, early_state, unique_walk
 
 NO_DRIFT = G.GridParams(drift_xy=0.0, drift_deg=0.0, n_img=64)
 
@@ -72,23 +72,10 @@ def test_the_grid_holds_the_pooled_log_likelihood_of_every_placement():
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 K, J = 8, 16
 COMMIT = 2
-FIELDS = (256, 512)  # one field shape for both test buildings
 
 
 def _world(fp):
-    from mfcl_jax.decision import decision_maps, layer
-    from mfcl_jax.decision.maps import pad_maps
-    from mfcl_jax.decision.rivals import rival_fields
-    from mfcl_jax.sim.synthetic import GRID
-    from tests._layer import CAPS, lanes_of
-
-    p, lanes, spec = lanes_of(None, ours=("ours", "ours_grid"), baselines=False)
-    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4, n_motions=8,
-                                              n_offsets=32))  # fmt: skip
-    fields = jax.tree.map(jnp.asarray, rival_fields(fp, shape=FIELDS))
-    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
-                       fields, 0)  # fmt: skip
-    return state, (maps, fields, p, lanes, spec)
+    return early_state(fp, ("ours", "ours_grid"))
 
 
 def _robot(fp, run):

@@ -2,35 +2,25 @@
 placement that explains the path as soon as the test holds, earlier than the count of windows
 where the building allows it, and never where a congruent copy explains the path as well."""
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from mfcl_jax import se2
-from mfcl_jax.decision import decision_maps, layer
-from mfcl_jax.decision.maps import pad_maps
-from mfcl_jax.decision.rivals import image_size, rival_fields
+from mfcl_jax.decision.rivals import image_size
 from mfcl_jax.sim.synthetic import PITCH, row_of_rooms
-from tests._layer import CAPS, GRID, evidence_of, lanes_of, stepwise
-from tests._walks import congruent_walk, unique_walk
+from tests._layer import evidence_of, stepwise
+from tests._walks import congruent_walk, early_state, unique_walk
 
 A = np.array([1.0, -2.0, 0.4])  # hidden ^B T_L
 K, J = 8, 16
 COMMIT = 2
-FIELDS = (256, 512)  # the rival search's field shape of both test buildings
 
 
 def _decide(fp, run):
     """Lanes ``ours`` and ``ours_unique_a2`` (alpha 1e-2) window by window: host leaves
     ``(K, 2, ...)``."""
-    p, lanes, spec = lanes_of(None, ours=("ours", "ours_unique_a2"), baselines=False)
-    maps = jax.tree.map(jnp.asarray, pad_maps(decision_maps(fp), GRID, 4, n_motions=8,
-                                              n_offsets=32))  # fmt: skip
     # one static shape for both scenes (the longer row's), so both tests share one program
-    fields = jax.tree.map(jnp.asarray, rival_fields(fp, shape=FIELDS))
     n_img = image_size([row_of_rooms(widths=(PITCH,) * 4)])
-    state = layer.init(maps, p.as_arrays(), CAPS, jax.tree.map(jnp.asarray, lanes), spec,
-                       fields, n_img)  # fmt: skip
+    state, _ = early_state(fp, ("ours", "ours_unique_a2"), n_img)
     return stepwise(state, evidence_of(run))[1]
 
 

@@ -9,12 +9,15 @@ import shapely
 from shapely.geometry import MultiLineString
 
 from mfcl_jax.sim.families import (
+    NEAR_SYM_KINDS,
     NotApplicable,
     make_scene,
     with_as_built,
     with_clutter,
+    with_near_symmetry,
     with_scale_error,
 )
+from mfcl_jax.sim.families.nearsym import MOVE, self_motion
 from tests._families import _centre, _driven, _min_dist
 
 
@@ -119,3 +122,40 @@ def test_with_clutter(fraction):
     assert with_clutter(sc, fraction, 7).clutter.tobytes() == more.clutter.tobytes()
     with pytest.raises(ValueError, match="area_fraction"):
         with_clutter(sc, 0.7, 0)
+
+
+@pytest.mark.parametrize("family, seed", [("rotational", 2), ("bays", 0)])
+def test_near_symmetry_stub(family, seed):
+    sc = make_scene(family, seed)
+    g = self_motion(sc)
+    assert g is not None
+    built = {k: with_near_symmetry(sc, k, 0) for k in NEAR_SYM_KINDS}
+    plan = built["stub_built"].floorplan
+    stub = plan.walls[-1]
+    assert len(plan.walls) == len(sc.floorplan.walls) + 1 and np.isclose(
+        np.linalg.norm(stub[1] - stub[0]), 1.2
+    )
+    for k, s in built.items():
+        assert s.floorplan.walls.shape == plan.walls.shape, k  # every kind: the same plan
+        np.testing.assert_array_equal(s.floorplan.walls, plan.walls)
+        _walks_clear(s)
+    assert built["stub_built"].as_built is None
+    np.testing.assert_array_equal(built["stub_unbuilt"].as_built, sc.floorplan.wall_faces)
+
+    def near(faces, seg):  # distance from a stub's tip to the nearest real face
+        return shapely.distance(MultiLineString(list(faces)), shapely.Point(seg[1]))
+
+    c, s_ = np.cos(g[2]), np.sin(g[2])
+    image = stub @ np.array([[c, s_], [-s_, c]]) + g[:2]
+    assert near(built["stub_twin"].as_built, stub) < 0.1
+    assert near(built["stub_twin"].as_built, image) < 0.1
+    assert near(sc.floorplan.wall_faces, image) > 0.3  # the image stands in free space
+    moved = built["stub_moved"].as_built
+    assert near(moved, stub) > 0.25 and abs(near(moved, stub) - MOVE) < 0.1
+
+
+def test_near_symmetry_needs_an_exact_self_motion():
+    with pytest.raises(NotApplicable, match="no exact self-motion"):
+        with_near_symmetry(make_scene("ring", 0), "stub_unbuilt", 0)
+    with pytest.raises(ValueError, match="unknown kind"):
+        with_near_symmetry(make_scene("rotational", 2), "stub", 0)

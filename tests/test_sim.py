@@ -265,6 +265,26 @@ def test_odometry_restart_rezeroes_the_frame(bays):
         SimParams(restart_at=1.5)
 
 
+def test_odometry_latency_lags_the_scans(bays):
+    late_by = 0.3
+    a = simulate(bays, ["S1"], [0], CLEAN)[0]
+    b = simulate(bays, ["S1"], [0], dataclasses.replace(CLEAN, odom_latency=late_by))[0]
+    t, odo, lag = a.seq.times, a.seq.odometry, b.seq.odometry
+    np.testing.assert_array_equal(b.seq.scans[7], a.seq.scans[7])  # the scans are the same
+    first = t < t[0] + late_by
+    np.testing.assert_allclose(lag[first], odo[:1].repeat(first.sum(), 0), atol=1e-9)
+    # Each later scan carries the odometry of late_by seconds before it.
+    for i in np.flatnonzero(~first)[::7]:
+        j = np.searchsorted(t, t[i] - late_by) - 1
+        w = (t[i] - late_by - t[j]) / (t[j + 1] - t[j])
+        np.testing.assert_allclose(lag[i, :2], (1 - w) * odo[j, :2] + w * odo[j + 1, :2],
+                                   atol=1e-9)  # fmt: skip
+    moving = np.linalg.norm(np.diff(odo[:, :2], axis=0), axis=1) > 0
+    assert np.linalg.norm(lag[1:, :2] - odo[1:, :2], axis=1)[moving].min() > 0.1  # 0.3 s at 0.5 m/s
+    with pytest.raises(ValueError, match="odom_latency"):
+        SimParams(odom_latency=-0.1)
+
+
 def test_unknown_trajectory_and_empty_inputs(bays):
     with pytest.raises(KeyError, match="no trajectory 'T9'"):
         simulate(bays, ["T9"])

@@ -16,7 +16,8 @@ Sources of runs ("families"):
   a place several congruent storeys share names no storey and is scored false.
 
 Fault axes (``faults``) re-run a base set of procedural runs (``fault_seeds`` seeds x the
-first walk of every procedural family) at every level of the axis.
+first walk of every procedural family) at every level of the axis; ``near_symmetric`` has its
+own base set (``NEAR_SYMMETRIC``: exactly symmetric buildings whose plan gets one stub).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "IFC_MODELS",
     "LOGS",
     "FAULTS",
+    "NEAR_SYMMETRIC",
     "POLICIES",
     "OPT_IN",
     "validate",
@@ -55,7 +57,13 @@ FAULTS = {
     "scale": (1.0, 1.01, 1.02),  # floor-plan scale error
     "restart": (0.35, 0.5, 0.65),  # odometry restart at this fraction of the walk
     "plan": ("no_doors", "rooms_only"),  # the plan without door features; rooms only
+    "latency": (0.05, 0.15, 0.3),  # s by which the odometry lags the scans
+    # one stub breaks an exactly symmetric building's plan; built as drawn, not, twice, moved
+    "near_symmetric": ("stub_built", "stub_unbuilt", "stub_twin", "stub_moved"),
 }
+# the near-symmetric axis's own base set: per family, the first seeds whose plan has an exact
+# self-motion and a room for the stub (``sim.families.nearsym``), walks A and B of each
+NEAR_SYMMETRIC = {"rotational": 3, "bays": 3}
 # every policy is run unless ``policies=`` says otherwise; the ``ours_unique*`` lanes are the
 # uniqueness test at five error rates (issue 28's trade-off of risk against metres)
 POLICIES = (

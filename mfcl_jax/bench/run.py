@@ -87,7 +87,7 @@ def _light(rec: Recording) -> Recording:
 # Faults that change neither the building nor the walk, only the sensor or the odometry: the
 # run's label is its nominal twin's (same true path, same walls; what the robot saw differs by
 # noise only), so it is computed once.
-SAME_GEOMETRY = ("drift", "yaw_drift", "dropout", "range_noise", "restart")
+SAME_GEOMETRY = ("drift", "yaw_drift", "dropout", "range_noise", "restart", "latency")
 
 
 def _digest(rec: Recording) -> str:

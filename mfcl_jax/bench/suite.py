@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mfcl_jax.bench.config import FAULTS, IFC_MODELS, PROCEDURAL, BenchmarkConfig
+from mfcl_jax.bench.config import FAULTS, IFC_MODELS, NEAR_SYMMETRIC, PROCEDURAL, BenchmarkConfig
 from mfcl_jax.sim import LidarParams, SimParams, TrajectoryParams
 from mfcl_jax.sources.data import data_dir
 
@@ -200,6 +200,10 @@ def _faulted(axis: str, level, fam: str, seed: int):
         sim = replace(sim, lidar=replace(lidar, sigma=float(level)))
     elif axis == "restart":
         sim = replace(sim, restart_at=float(level))
+    elif axis == "latency":
+        sim = replace(sim, odom_latency=float(level))
+    elif axis == "near_symmetric":
+        scene = families.with_near_symmetry(scene, str(level), 0)
     elif axis == "clutter":
         scene = families.with_clutter(scene, float(level), seed) if level else scene
     elif axis == "as_built":
@@ -225,6 +229,31 @@ def reuses_nominal(cfg: BenchmarkConfig, axis: str, level, fam: str, seed: int) 
             and seed < cfg.seeds)  # fmt: skip
 
 
+def near_symmetric_seeds(family: str, n: int) -> list[int]:
+    """The first ``n`` seeds of ``family`` whose plan takes the near-symmetric stub."""
+    from mfcl_jax.sim.families import NotApplicable, make_scene, with_near_symmetry
+
+    out = []
+    for seed in range(64):
+        if len(out) == n:
+            break
+        try:
+            with_near_symmetry(make_scene(family, seed), "stub_built", 0)
+            out.append(seed)
+        except NotApplicable:
+            continue
+    return out
+
+
+def _fault_base(cfg: BenchmarkConfig, axis: str) -> tuple[list, int]:
+    """(family, seed) pairs an axis re-runs, and the walks of each."""
+    if axis == "near_symmetric":
+        return [(f, s) for f, n in NEAR_SYMMETRIC.items() if f in cfg.families
+                for s in near_symmetric_seeds(f, n)], 2  # fmt: skip
+    fams = [f for f in cfg.families if f in PROCEDURAL]
+    return [(f, s) for f in fams for s in range(cfg.fault_seeds)], 1
+
+
 def fault_recordings(cfg: BenchmarkConfig) -> list:
     """The base set (first walk of every procedural family, ``fault_seeds`` seeds) at every
     level of every configured fault axis. Runs at an axis's nominal level that the nominal
@@ -232,22 +261,22 @@ def fault_recordings(cfg: BenchmarkConfig) -> list:
     that cannot move, no wall that can go) is skipped and said so."""
     from mfcl_jax.sim.families import NotApplicable
 
-    fams = [f for f in cfg.families if f in PROCEDURAL]
     out = []
     for axis in cfg.faults:
         n0 = len(out)
         skipped = []
+        base, walks = _fault_base(cfg, axis)
         for level in FAULTS[axis]:
-            for fam in fams:
-                for seed in range(cfg.fault_seeds):
-                    if reuses_nominal(cfg, axis, level, fam, seed):
-                        continue
-                    try:
-                        scene, sim = _faulted(axis, level, fam, seed)
-                    except NotApplicable as e:
-                        skipped.append(f"{fam}/{seed} {level}: {e}")
-                        continue
-                    out += _procedural(fam, seed, 1, sim, scene=scene, fault=axis, level=str(level))
+            for fam, seed in base:
+                if reuses_nominal(cfg, axis, level, fam, seed):
+                    continue
+                try:
+                    scene, sim = _faulted(axis, level, fam, seed)
+                except NotApplicable as e:
+                    skipped.append(f"{fam}/{seed} {level}: {e}")
+                    continue
+                out += _procedural(fam, seed, walks, sim, scene=scene, fault=axis,
+                                   level=str(level))  # fmt: skip
         _log(cfg, f"fault {axis}: {len(out) - n0} runs")
         for s in skipped:
             _log(cfg, f"fault {axis}: not applicable, skipped: {s}")

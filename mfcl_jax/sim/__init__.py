@@ -36,13 +36,21 @@ class SimParams:
             pose of each run (odometry then starts at the identity, as an LIO does).
         restart_at: fraction of the path at which the odometry restarts from the identity
             (a fault: the frames before and after are unrelated); ``None``: no restart.
+        odom_latency: seconds by which the odometry lags the scans (a fault: each scan's
+            odometry pose is the one of that many seconds before it, as when the odometry's
+            time stamps are late); 0: none.
     """
 
     lidar: LidarParams = field(default_factory=LidarParams)
     trajectory: TrajectoryParams = field(default_factory=TrajectoryParams)
     anchor: tuple[float, float, float] | None = None
     restart_at: float | None = None
+    odom_latency: float = 0.0
 
     def __post_init__(self):
+        if not 0.0 <= self.odom_latency < 5.0:
+            raise ValueError(
+                f"SimParams.odom_latency must be in [0, 5) s, got {self.odom_latency!r}"
+            )
         if self.restart_at is not None and not 0 < self.restart_at < 1:
             raise ValueError(f"SimParams.restart_at must be in (0, 1), got {self.restart_at!r}")

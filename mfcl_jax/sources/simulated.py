@@ -9,7 +9,8 @@ from the seed and the scene / trajectory names (crc32, stable across processes).
 
 An odometry restart (``SimParams.restart_at``) re-zeroes the odometry at that fraction of the
 path, as an LIO that is restarted does: the odometry frame after it is unrelated to the one
-before it.
+before it. Odometry latency (``SimParams.odom_latency``) gives each scan the odometry pose of
+that many seconds before it.
 """
 
 from __future__ import annotations
@@ -75,6 +76,19 @@ def _restart(odo: np.ndarray, at: float | None) -> np.ndarray:
         return odo
     out = odo.copy()
     out[r:] = np.asarray(se2.between(odo[r], odo[r:]), np.float64)
+    return out
+
+
+def _late(odo: np.ndarray, t: np.ndarray, latency: float) -> np.ndarray:
+    """The odometry lagging by ``latency`` s: poses interpolated at ``t - latency`` (the first
+    pose before the start; yaw unwrapped, interpolated and wrapped again)."""
+    if latency <= 0:
+        return odo
+    q = np.maximum(t - latency, t[0])
+    yaw = np.unwrap(odo[:, 2])
+    out = np.stack([np.interp(q, t, odo[:, 0]), np.interp(q, t, odo[:, 1]),
+                    np.interp(q, t, yaw)], axis=1)  # fmt: skip
+    out[:, 2] = se2.wrap_host(out[:, 2])
     return out
 
 
@@ -175,7 +189,8 @@ def simulate(
         scans = [p[np.all(np.isfinite(p), 1)] for p in pts[offsets[i] : offsets[i] + c]]
         name = f"{scene.name}/{n}/s{s}"
         path = paths[n]
-        seq = ScanSequence(path.t, scans, _restart(odo[i, :c], params.restart_at), name)
+        late = _late(odo[i, :c], np.asarray(path.t, np.float64), params.odom_latency)
+        seq = ScanSequence(path.t, scans, _restart(late, params.restart_at), name)
         meta = dict(scene=scene.name, trajectory=n, seed=s, length_m=float(path.s[-1]))
         out.append(Recording(name, scene.floorplan, seq, GroundTruth(path.t, path.poses), meta))
     return out

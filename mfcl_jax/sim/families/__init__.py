@@ -32,6 +32,7 @@ from mfcl_jax.sim.families.faults import (
 )
 from mfcl_jax.sim.families.halls import hall
 from mfcl_jax.sim.families.mirror import mirror
+from mfcl_jax.sim.families.nearsym import NEAR_SYM_KINDS, with_near_symmetry
 from mfcl_jax.sim.families.offices import offices
 from mfcl_jax.sim.families.output import write_family_geojson
 from mfcl_jax.sim.families.rings import ring
@@ -46,6 +47,8 @@ __all__ = [
     "make_scene",
     "with_clutter",
     "with_as_built",
+    "with_near_symmetry",
+    "NEAR_SYM_KINDS",
     "with_scale_error",
     "with_plan_format",
     "PLAN_FORMATS",

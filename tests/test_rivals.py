@@ -214,7 +214,7 @@ def test_buildings_decided_by_size_class_as_on_one_grid():
     cost follows the building, its answers do not."""
     from mfcl_jax.decision import make_lanes
     from mfcl_jax.decision.inputs import RunInputs
-    from mfcl_jax.decision.runs import TRACES, decide_runs, size_class, wait_prepared
+    from mfcl_jax.decision.runs import TRACES, compile_runs, decide_runs, size_class, wait_compiled
 
     small = row_of_rooms(widths=(PITCH, 9.0, 5.5))
     large = row_of_rooms(widths=(PITCH, 9.0, 5.5, 8.0, 6.5, 9.5))
@@ -242,9 +242,9 @@ def test_buildings_decided_by_size_class_as_on_one_grid():
     # above), none at the call
     before = TRACES["scan_runs"]
     blank = RunInputs(jax.tree.map(np.zeros_like, ev), n, n, inputs.seg_keyframes)
-    assert decide_runs(blank, building, [small, large], p, lanes, spec, min_traj=256,
-                       size_classes=True, prepare=True)[0] is None  # fmt: skip
-    wait_prepared()
+    compile_runs(blank, building, [small, large], p, lanes, spec, min_traj=256,
+                 size_classes=True)  # fmt: skip
+    wait_compiled()
     assert TRACES["scan_runs"] == before + 1
     split, tm = decide_runs(inputs, building, [small, large], p, lanes, spec, min_traj=256,
                             size_classes=True, progress=done.append)  # fmt: skip

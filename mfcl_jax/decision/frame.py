@@ -1,5 +1,6 @@
 """Decisions as a table: one row per run x window x threshold set x lane (host, pandas);
-``decide`` makes the table of a ``WindowBatch``.
+``decide`` makes the table of a ``WindowBatch`` (``compile_decisions`` starts compiling its programs
+ahead).
 
 Made after the jitted work from a ``Decision`` with leaves ``(R, K, L, ...)``: names for the
 codes, NaN where a column does not apply.
@@ -14,9 +15,9 @@ from mfcl_jax.decision import lattice
 from mfcl_jax.decision.inputs import run_inputs
 from mfcl_jax.decision.lanes import make_lanes
 from mfcl_jax.decision.outcome import REASONS, STATE_NAMES, Decision
-from mfcl_jax.decision.runs import decide_runs
+from mfcl_jax.decision.runs import compile_runs, decide_runs
 
-__all__ = ["to_frame", "names", "decide"]
+__all__ = ["to_frame", "names", "decide", "compile_decisions"]
 
 
 def names(table: dict, codes) -> np.ndarray:
@@ -94,10 +95,27 @@ def to_frame(dec: Decision, spec, window_mask=None) -> pd.DataFrame:
     return df
 
 
+def _lanes_and_inputs(batch, cands, params, ours, baselines, primary, primary_set, kw):
+    """``(lanes, spec, the positional arguments of runs.decide_runs, its keywords)``."""
+    p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
+    kw = dict(kw)
+    steps = {k: kw.pop(k) for k in ("min_step", "min_head") if k in kw}
+    return spec, (run_inputs(batch, cands, **steps), batch.run_building, p, ln, spec), kw
+
+
+def compile_decisions(batch, cands, floorplans, params=None, ours=("ours",),
+                      baselines: bool = True, primary: str | None = "ours",
+                      primary_set: int = 0, **kw) -> None:  # fmt: skip
+    """Starts compiling, in the background, the programs ``decide`` with the same arguments
+    will call (``runs.compile_runs``); ``cands`` need only their shapes. Returns at once."""
+    _, (inputs, rb, p, ln, spec), kw = _lanes_and_inputs(
+        batch, cands, params, ours, baselines, primary, primary_set, kw
+    )
+    compile_runs(inputs, rb, floorplans, p, ln, spec, **kw)
+
+
 def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: bool = True,
-           primary: str | None = "ours", primary_set: int = 0, runs_per_call: int = 16,
-           buildings_per_call: int = 8, progress=None, size_classes: bool = False,
-           prepare: bool = False, **floors):  # fmt: skip
+           primary: str | None = "ours", primary_set: int = 0, progress=None, **kw):  # fmt: skip
     """Every lane's decision at every window of a ``WindowBatch``, as a table
     (``runs.decide_runs`` on ``inputs.run_inputs``, then ``to_frame``).
 
@@ -108,22 +126,17 @@ def decide(batch, cands, floorplans, params=None, ours=("ours",), baselines: boo
         params: one ``DecisionParams`` or a list of threshold sets (``lanes.make_lanes``).
         ours: our variants (``lanes.OURS_VARIANTS``); baselines: add the baselines.
         primary, primary_set: the lane whose commits trigger the rival search.
-        size_classes: decide each building size class apart (``decide_runs``).
-        prepare: only start compiling, in the background (``decide_runs``); returns
-            ``(None, timing)``.
-        floors: ``min_step``, ``min_head`` (``run_inputs``), ``min_windows``, ``min_traj``
-            (``decide_runs``).
+        progress: optional callable ``progress(runs_done)``.
+        kw: ``min_step``, ``min_head`` (``run_inputs``) and ``decide_runs``' keywords
+            (``runs_per_call``, ``buildings_per_call``, ``size_classes``, ``min_windows``,
+            ``min_traj``, ...).
 
     Returns:
         ``(frame, timing)``: ``to_frame``'s rows for the batch's valid windows and
         ``decide_runs``'s timing.
     """
-    p, ln, spec = make_lanes(params, ours, baselines, primary, primary_set)
-    steps = {k: floors.pop(k) for k in ("min_step", "min_head") if k in floors}
-    inputs = run_inputs(batch, cands, **steps)
-    dec, tm = decide_runs(inputs, batch.run_building, floorplans, p, ln, spec, runs_per_call,
-                          buildings_per_call, progress, size_classes=size_classes,
-                          prepare=prepare, **floors)  # fmt: skip
-    if prepare:
-        return None, tm
+    spec, (inputs, rb, p, ln, _), kw = _lanes_and_inputs(
+        batch, cands, params, ours, baselines, primary, primary_set, kw
+    )
+    dec, tm = decide_runs(inputs, rb, floorplans, p, ln, spec, progress=progress, **kw)
     return to_frame(dec, spec, batch.runs.window_mask), tm

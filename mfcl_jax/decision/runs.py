@@ -9,7 +9,7 @@ once, by the same ``update`` a robot calls."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import jax
@@ -23,8 +23,8 @@ from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import decision_maps, stack_maps
 from mfcl_jax.decision.params import DecisionParams
 
-__all__ = ["Buildings", "stack_buildings", "size_class", "scan_runs", "decide_runs",
-           "wait_prepared", "chunks"]  # fmt: skip
+__all__ = ["Buildings", "stack_buildings", "size_class", "scan_runs", "compile_runs",
+           "decide_runs", "wait_compiled", "chunks"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -98,51 +98,43 @@ def _bucket(n: int, minimum: int, step: int) -> int:
     return -(-max(int(n), int(minimum)) // step) * step
 
 
-def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
-                lanes: Lanes, spec: LaneSpec, runs_per_call: int = 16,
-                buildings_per_call: int = 8, progress=None,
-                rival_params: rivals.RivalParams = rivals.DEFAULT_RIVALS,
-                min_windows: int = 16, min_traj: int = 128, min_runs: int = 1,
-                buildings: Buildings | None = None, size_classes: bool = False,
-                prepare: bool = False):  # fmt: skip
-    """Every lane's decision at every window of every run.
+@dataclass(frozen=True)
+class _Call:
+    """One compiled call of a batch: its runs ``idx`` (into the batch), the program's
+    ``key`` and ``make`` (compiles it), its ``args`` and the real runs ``n`` among its rows."""
 
-    Args:
-        inputs: ``run_inputs`` of the batch.
-        run_building: ``(R,)`` building index of each run into ``floorplans``.
-        params, lanes, spec: ``lanes.lanes(...)``.
-        runs_per_call, buildings_per_call: chunk sizes.
-        progress: optional callable ``progress(runs_done)``.
-        min_windows, min_traj: the least window and keyframe capacities (``Caps``) and scan
-            length: batches with the same floors share one compilation.
-        min_runs: the least runs per call (rows past the batch are padded and masked).
-        buildings: ``stack_buildings(floorplans, ...)``, built once by a caller deciding several
-            batches, so that all share one compilation (default: the batch's buildings).
-        size_classes: without ``buildings``, decide the buildings of each ``size_class`` apart
-            (their own grid and path image, one compilation per class), so that a small
-            building's searches of the plan do not pay for the largest one's image.
-        prepare: only start compiling what these inputs need, in a background thread
-            (``background.Pending``), and return ``(None, timing)``: a later call with inputs
-            of the same shapes (any values) waits for that program instead of compiling.
+    idx: np.ndarray
+    key: tuple
+    make: object
+    args: tuple
+    n: int
 
-    Returns:
-        ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
-        ``{"compile_s", "run_s", "searches"}`` (``compile_s``: the wait for compilations).
-    """
+
+def _calls(inputs: RunInputs, run_building, floorplans, params, lanes, spec, runs_per_call=16,
+           buildings_per_call=8, rival_params=rivals.DEFAULT_RIVALS, min_windows=16,
+           min_traj=128, min_runs=1, buildings=None, size_classes=False):  # fmt: skip
+    """The calls that decide a batch (``decide_runs``' arguments), chunk by chunk; with
+    ``size_classes``, each size class's calls in turn (their ``idx`` into the whole batch)."""
     rb = np.asarray(run_building)
-    R, K = np.asarray(inputs.evidence.valid).shape
+    R = rb.shape[0]
+    kw = dict(runs_per_call=runs_per_call, buildings_per_call=buildings_per_call,
+              rival_params=rival_params, min_windows=min_windows, min_traj=min_traj,
+              min_runs=min_runs)  # fmt: skip
     if buildings is None and size_classes and spec.searches:
-        used = sorted(set(rb.tolist()))
         classes: dict = {}
-        for b in used:
+        for b in sorted(set(rb.tolist())):
             classes.setdefault(size_class(floorplans[b], rival_params), []).append(b)
         if len(classes) > 1:
-            return _by_class(classes, inputs, rb, floorplans, params, lanes, spec, progress,
-                             dict(runs_per_call=runs_per_call,
-                                  buildings_per_call=buildings_per_call,
-                                  rival_params=rival_params, min_windows=min_windows,
-                                  min_traj=min_traj, min_runs=min_runs,
-                                  prepare=prepare))  # fmt: skip
+            for members in classes.values():
+                idx = np.flatnonzero(np.isin(rb, members))
+                sub = RunInputs(jax.tree.map(lambda a, i=idx: np.asarray(a)[i], inputs.evidence),
+                                inputs.n_windows[idx], inputs.seg_windows[idx],
+                                inputs.seg_keyframes[idx])  # fmt: skip
+                local = np.searchsorted(np.asarray(members), rb[idx]).astype(np.int32)
+                for c in _calls(sub, local, [floorplans[b] for b in members], params, lanes,
+                                spec, **kw):  # fmt: skip
+                    yield replace(c, idx=idx[c.idx])
+            return
     # one grid bucket for every building: one compilation per capacity bucket
     if buildings is None:
         used = sorted(set(rb.tolist()))
@@ -156,13 +148,10 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     J = int(np.asarray(inputs.evidence.mask).shape[2])
     P = int(np.asarray(inputs.evidence.ev_mask).shape[2])
     S = int(np.asarray(inputs.evidence.traj_mask).shape[2])
-    tm = {"compile_s": 0.0, "run_s": 0.0, "searches": 0}
-    out = None
-    done = 0
     p = params.as_arrays()
     runs_per_call = max(1, min(runs_per_call, max(R, min_runs)))
     # one scan length for the batch too: a compilation costs more than padded windows
-    kw = _bucket(int(inputs.n_windows.max(initial=1)), min_windows, 16)
+    n_w = _bucket(int(inputs.n_windows.max(initial=1)), min_windows, 16)
     n_b = min(buildings_per_call, len(used))
     for idx in chunks(rb, runs_per_call, n_b, keys=k_b * 65536 + t_b):
         kb, tb = int(k_b[idx[0]]), int(t_b[idx[0]])
@@ -174,41 +163,79 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
         bidx = np.asarray([local_b.index(b) for b in rb[idx]], np.int32)
         n = len(idx)
         ev = jax.tree.map(
-            lambda a, i=idx, w=kw: _fit_windows(_pad_rows(np.asarray(a)[i], runs_per_call), w),
+            lambda a, i=idx, w=n_w: _fit_windows(_pad_rows(np.asarray(a)[i], runs_per_call), w),
             inputs.evidence,
         )
         ev = layer.WindowEvidence(**{**ev.__dict__, "valid": np.where(
             (np.arange(runs_per_call) < n)[:, None], ev.valid, False)})  # fmt: skip
         bidx = _pad_rows(bidx, runs_per_call)
         key = (caps, spec, n_img, rival_params, mp.label.shape, runs_per_call,
-               None if fields is None else fields.hit.shape, kw)  # fmt: skip
+               None if fields is None else fields.hit.shape, n_w)  # fmt: skip
         args = (mp, fields, bidx, p, lanes, ev)
+        yield _Call(idx, key, partial(_compile, args, caps, spec, n_img, rival_params), args, n)
+
+
+def compile_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
+                 lanes: Lanes, spec: LaneSpec, **kw) -> None:  # fmt: skip
+    """Starts compiling, in a background thread each (``background.Pending``), the programs
+    ``decide_runs`` will call for inputs of these shapes (any values), and returns at once: a
+    later ``decide_runs`` waits for them instead of compiling (``wait_compiled``). Arguments:
+    ``decide_runs``' (``progress`` aside)."""
+    for c in _calls(inputs, run_building, floorplans, params, lanes, spec, **kw):
+        if c.key not in _COMPILED:
+            _COMPILED[c.key] = Pending(c.make, "mfcl-compile")
+
+
+def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionParams,
+                lanes: Lanes, spec: LaneSpec, progress=None, **kw):  # fmt: skip
+    """Every lane's decision at every window of every run.
+
+    Args:
+        inputs: ``run_inputs`` of the batch.
+        run_building: ``(R,)`` building index of each run into ``floorplans``.
+        params, lanes, spec: ``lanes.lanes(...)``.
+        progress: optional callable ``progress(runs_done)``.
+        kw: ``runs_per_call``, ``buildings_per_call`` (chunk sizes, 16 and 8);
+            ``rival_params``; ``min_windows``, ``min_traj`` (the least window and keyframe
+            capacities, ``Caps``, and scan length: batches with the same floors share one
+            compilation); ``min_runs`` (the least runs per call: rows past the batch are
+            padded and masked); ``buildings`` (``stack_buildings(floorplans, ...)``, built once
+            by a caller deciding several batches, so that all share one compilation; default:
+            the batch's buildings); ``size_classes`` (without ``buildings``, decide the
+            buildings of each ``size_class`` apart, on their own grid and path image, one
+            compilation per class, so that a small building's searches of the plan do not pay
+            for the largest one's image).
+
+    Returns:
+        ``(decisions, timing)``: ``Decision`` with host leaves ``(R, K, L, ...)`` and
+        ``{"compile_s", "run_s", "searches"}`` (``compile_s``: the wait for compilations).
+    """
+    R, K = np.asarray(inputs.evidence.valid).shape
+    tm = {"compile_s": 0.0, "run_s": 0.0, "searches": 0}
+    out, done = None, 0
+    for c in _calls(inputs, run_building, floorplans, params, lanes, spec, **kw):
         t0 = time.perf_counter()
-        if key not in _COMPILED:
-            make = partial(_compile, args, caps, spec, n_img, rival_params)
-            _COMPILED[key] = Pending(make, "mfcl-compile") if prepare else make()
-        if prepare:
-            continue
-        if isinstance(_COMPILED[key], Pending):
-            _COMPILED[key] = _COMPILED[key].result()
+        fn = _COMPILED.get(c.key)
+        _COMPILED[c.key] = fn = c.make() if fn is None else (
+            fn.result() if isinstance(fn, Pending) else fn)  # fmt: skip
         tm["compile_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        dec = jax.block_until_ready(_COMPILED[key](*args))
+        dec = jax.block_until_ready(fn(*c.args))
         tm["run_s"] += time.perf_counter() - t0
-        dec = jax.tree.map(lambda a, n=n: _fit_windows(np.asarray(a)[:n], K), dec)
+        dec = jax.tree.map(lambda a, n=c.n: _fit_windows(np.asarray(a)[:n], K), dec)
         if out is None:
             out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
         for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
-            o[idx] = d
-        done += n
+            o[c.idx] = d
+        done += c.n
         if progress is not None:
             progress(done)
     tm["searches"] = int(np.asarray(out.searched)[..., 0].sum()) if out is not None else 0
     return out, tm
 
 
-def wait_prepared() -> None:
-    """Waits for every compilation started by ``decide_runs(prepare=True)``."""
+def wait_compiled() -> None:
+    """Waits for every compilation started by ``compile_runs``."""
     for key, c in list(_COMPILED.items()):
         if isinstance(c, Pending):
             _COMPILED[key] = c.result()
@@ -224,31 +251,6 @@ def size_class(floorplan, rival_params=rivals.DEFAULT_RIVALS) -> tuple[int, int]
     search image side (``rivals.image_size``); buildings of one class share a compilation."""
     r = floorplan.rasterize()
     return -(-max(r.shape) // 256) * 256, rivals.image_size([floorplan], rival_params)
-
-
-def _by_class(classes, inputs, rb, floorplans, params, lanes, spec, progress, kw):
-    """``decide_runs`` on the runs of each size class apart, merged in run order."""
-    R = rb.shape[0]
-    out, tm, done = None, {"compile_s": 0.0, "run_s": 0.0, "searches": 0}, 0
-    for members in classes.values():
-        idx = np.flatnonzero(np.isin(rb, members))
-        sub = RunInputs(jax.tree.map(lambda a, i=idx: np.asarray(a)[i], inputs.evidence),
-                        inputs.n_windows[idx], inputs.seg_windows[idx],
-                        inputs.seg_keyframes[idx])  # fmt: skip
-        local = np.searchsorted(np.asarray(members), rb[idx]).astype(np.int32)
-        step = None if progress is None else (lambda n, d=done: progress(d + n))
-        dec, t = decide_runs(sub, local, [floorplans[b] for b in members], params, lanes, spec,
-                             progress=step, **kw)  # fmt: skip
-        if dec is None:  # prepared only
-            continue
-        if out is None:
-            out = jax.tree.map(lambda a: np.zeros((R, *a.shape[1:]), a.dtype), dec)
-        for o, d in zip(jax.tree.leaves(out), jax.tree.leaves(dec), strict=True):
-            o[idx, : d.shape[1]] = d
-        for k in tm:
-            tm[k] += t[k]
-        done += len(idx)
-    return out, tm
 
 
 def _fit_windows(a: np.ndarray, n: int) -> np.ndarray:

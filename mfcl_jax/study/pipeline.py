@@ -28,8 +28,8 @@ from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.sources.simulated import simulate
 
-__all__ = ["Timings", "StudyData", "frontend", "prepare", "register_all", "decide", "score", "log",
-           "CHUNK"]  # fmt: skip
+__all__ = ["Timings", "StudyData", "frontend", "prepare", "register_all", "compile_decisions",
+           "decide", "score", "log", "CHUNK"]  # fmt: skip
 
 CHUNK = 32  # submaps per front-end call
 
@@ -155,6 +155,14 @@ def register_all(data: StudyData, fe: FrontEnd, timings: Timings, progress=True)
     return cands
 
 
+def compile_decisions(data: StudyData, cands: Candidates, params: DecisionParams, batch=None,
+                      ours=COUNT_VARIANTS, **floors) -> None:  # fmt: skip
+    """Starts compiling what ``decide`` with the same arguments will call, in the background
+    (``decision.frame.compile_decisions``); ``cands`` need only their shapes."""
+    decision_frame.compile_decisions(batch or data.batch, cands, data.floorplans, params,
+                                     ours=ours, **floors)  # fmt: skip
+
+
 def decide(
     data: StudyData,
     cands: Candidates,
@@ -164,18 +172,13 @@ def decide(
     progress=True,
     batch=None,
     ours=COUNT_VARIANTS,
-    prepare=False,
     **floors,
-) -> pd.DataFrame | None:
+) -> pd.DataFrame:
     """Every lane's decision (``ours`` and the baselines) at every window of every run, in
     one compiled call per capacity bucket; ``batch`` replaces ``data.batch`` (a subset);
-    ``prepare``: only start compiling (``decision.frame.decide``), returns None; ``floors``:
-    ``decide``'s."""
+    ``floors``: ``decision.frame.decide``'s."""
     batch = batch or data.batch
-    df, tm = decision_frame.decide(batch, cands, data.floorplans, params, ours=ours,
-                                  prepare=prepare, **floors)  # fmt: skip
-    if prepare:
-        return None
+    df, tm = decision_frame.decide(batch, cands, data.floorplans, params, ours=ours, **floors)
     note = f"{batch.runs.n_runs} runs x {batch.runs.n_windows} windows, {tm['searches']} searches"
     timings.add(label, tm["compile_s"], tm["run_s"], note)
     log(f"[{label}] {note}: compile {tm['compile_s']:.1f} s, run {tm['run_s']:.1f} s", progress)

@@ -50,18 +50,22 @@ def _density_inputs(data, cands, cfg: StudyConfig, run: int):
     return batch, recs, runs, one, flooded, both, floors
 
 
-def _density(data, cands, scored, cfg: StudyConfig, tm, prepare=False) -> pd.DataFrame | None:
-    """The density-immunity table for ``cfg.density_run`` at the main seed (``prepare``:
-    only start compiling its decision, in the background; ``cands`` need only their shapes,
-    ``scored`` is not read)."""
+def _compile_density(data, cands, cfg: StudyConfig) -> None:
+    """Starts compiling the density table's decision in the background (``cands`` need only
+    their shapes)."""
+    run = _density_run(data, cfg)
+    if run is not None:
+        batch, _, _, _, _, both, floors = _density_inputs(data, cands, cfg, run)
+        pipeline.compile_decisions(data, both, cfg.decision, batch=batch, ours=("ours",),
+                                   **floors)  # fmt: skip
+
+
+def _density(data, cands, scored, cfg: StudyConfig, tm) -> pd.DataFrame | None:
+    """The density-immunity table for ``cfg.density_run`` at the main seed."""
     run = _density_run(data, cfg)
     if run is None:
         return None
     batch, recs, runs, one, flooded, both, floors = _density_inputs(data, cands, cfg, run)
-    if prepare:
-        pipeline.decide(data, both, cfg.decision, tm, label="density", batch=batch,
-                        ours=("ours",), prepare=True, **floors)  # fmt: skip
-        return None
     ours = scored[(scored["run"] == run) & (scored["policy"] == "ours")].sort_values("k")
     com = ours[ours["state"] == "COMMIT"]
     k_star = int(com["k"].iloc[0]) if len(com) else int(ours["k"].max())
@@ -98,9 +102,9 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     # The decision programs need the candidates' shapes only: they compile in the background
     # while the front-end registers (``background``), and the decisions wait for them.
     shaped = no_candidates(data.batch.submaps.n, cfg.frontend.J)
-    pipeline.decide(data, shaped, cfg.decision, tm, prepare=True)
+    pipeline.compile_decisions(data, shaped, cfg.decision)
     if "three_rooms" in cfg.scenes:
-        _density(data, shaped, None, cfg, tm, prepare=True)
+        _compile_density(data, shaped, cfg)
     cands = pipeline.register_all(data, fe, tm, cfg.progress)
     windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
     scored = pipeline.score(data, windows)

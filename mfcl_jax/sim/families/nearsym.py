@@ -10,8 +10,9 @@ the building as built (``Scene.as_built``) is one of:
   can tell the building's halves apart);
 * ``stub_unbuilt``: the stub is not there (reality is symmetric; where the robot stands by the
   stub, its scans fit the stub-free twin place better than the true one);
-* ``stub_twin``: the stub is there and a copy stands at its image under ``g`` (reality is
-  symmetric again, the other way round);
+* ``stub_twin``: the plan has the stub at the image under ``g`` of that place, and the
+  building has it there and a copy where the walk goes (reality is symmetric again, the other
+  way round: the walk sees a stub the plan puts only in the other half);
 * ``stub_moved``: the stub stands 0.4 m along its wall from where the plan has it.
 
 In the last three the scans are evidence against the plan exactly where the plan is the only
@@ -137,15 +138,16 @@ def with_near_symmetry(scene, kind: str, seed: int):
             break
     else:
         raise NotApplicable(f"with_near_symmetry: no room of {scene.name!r} takes a stub")
-    plan = _plus(fp, [seg], f"{fp.name}+stub")
+    image = _apply(g, seg)
+    plan = _plus(fp, [image if kind == "stub_twin" else seg], f"{fp.name}+stub")
     built = {
         "stub_built": None,
         "stub_unbuilt": fp.wall_faces,
-        "stub_twin": _plus(fp, [seg, _apply(g, seg)]).wall_faces,
+        "stub_twin": _plus(fp, [seg, image]).wall_faces,
         "stub_moved": _plus(fp, [seg + MOVE * np.array([seg[1, 1] - seg[0, 1],
                                                         seg[1, 0] - seg[0, 0]]) / STUB]).wall_faces,
     }[kind]  # fmt: skip
-    at = seg.round(2).tolist()
+    at = (image if kind == "stub_twin" else seg).round(2).tolist()
     return dataclasses.replace(
         scene,
         floorplan=plan,

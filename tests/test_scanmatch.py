@@ -69,6 +69,21 @@ def test_refined_odometry_starts_at_the_input_and_is_causal():
     np.testing.assert_array_equal(part, whole)
 
 
+def test_cutting_many_recordings_at_once_equals_cutting_each():
+    """The benchmark cuts a group's recordings in one batched LiDAR odometry (``cut_many``,
+    padded to ``rows``): every window must be what cutting that recording alone gives."""
+    recs = [_drifting(seed=s) for s in (1, 2)]
+    wp = W.WindowParams(d_s=6.0)
+    many = W.cut_many(((r.seq, wp) for r in recs), rows=4)
+    for r, w in zip(recs, many, strict=True):
+        one = W.cut(r.seq, wp)
+        np.testing.assert_array_equal(w.odometry, one.odometry)
+        np.testing.assert_array_equal(w.keyframes, one.keyframes)
+        assert len(w) == len(one) > 0
+        for a, b in zip(w.points, one.points, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_scans_without_structure_keep_the_input_increments():
     rec = _drifting(seed=2)
     seq = rec.seq

@@ -123,8 +123,8 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     poses = se2.compose(anchors[None], X[:, None])
 
     def adv(steps, n_free):
-        s, _ = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0,
-                                      n_free, steps)  # fmt: skip
+        s, *_ = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0,
+                                       n_free, steps)  # fmt: skip
         return np.asarray(s[:, :1] - s[:, 1:])  # (windows, 2)
 
     m = DecisionParams().cert_margin
@@ -163,9 +163,8 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     idx = np.asarray(idx)[np.asarray(ok)]
     anchors = jnp.asarray(np.stack([A, shifted]), jnp.float32)
     poses = se2.compose(anchors[None], X[idx][:, None])
-    s, sb = certify._window_scores(poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0,
-                                   certify.FREE_PER_RAY)  # fmt: skip
-    s, sb = np.asarray(s), np.asarray(sb)
+    s, sb, f, fb = (np.asarray(a) for a in certify._window_scores(
+        poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0, certify.FREE_PER_RAY))
     assert sb.shape == (len(idx), 2, certify.CERT_BLOCKS)
     scale = np.sqrt(certify.CERT_BLOCKS * certify.MARGIN_POINTS / ev[0].shape[1])
     window = s[:, 0] - s[:, 1]
@@ -175,6 +174,18 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     # the blocks are parts of the window: the shifted row is worse somewhere in them by more
     # than over the whole window (it differs at the row's end only)
     assert (sb[:, 0] - sb[:, 1]).max() > window.max()
+    # a turned competitor (``free_only``): the free-space term of the window or a block, or
+    # the whole score where two blocks of a window contradict it; favouring it stays the
+    # whole window's test
+    st_f = certify.certify(k, jnp.asarray(A, jnp.float32), comp, jnp.array([True]), X, ev,
+                           bounds, maps, p, free_only=jnp.array([True]))  # fmt: skip
+    two = np.sort(sb[:, 0] - sb[:, 1], axis=1)[:, -2] / scale
+    free = (f[:, 0] - f[:, 1]).max(), (fb[:, 0] - fb[:, 1]).max(axis=1).max() / scale
+    np.testing.assert_allclose(float(st_f.max_adv[0]), max(*free, two.max()), atol=1e-5)
+    np.testing.assert_allclose(float(st_f.min_adv[0]), window.min(), atol=1e-5)
+    # the shifted row differs from the truth at the row's end only, seen from inside the row
+    # (occupancy, one block): as a turned competitor it would not be ruled out
+    assert float(st_f.max_adv[0]) < p.cert_margin <= float(st.max_adv[0])
 
 
 def test_robot_and_batch_search_at_the_same_windows_and_agree():

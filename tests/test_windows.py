@@ -81,14 +81,17 @@ def test_pack_and_concat_index_runs_and_submaps():
     np.testing.assert_allclose(cat.submaps.X, both.submaps.X)
     assert cat.submaps.points.shape[1] == 0  # concat keeps no points
     np.testing.assert_array_equal(cat.evidence.end_mask, both.evidence.end_mask)
-    # the end sample: points of the window's last metre (ray origins within END_RADIUS of
-    # its last scan, the frame's origin), as many as there are up to EVIDENCE_POINTS
-    for k, (pts, org) in enumerate(zip(wa.points, wa.origins, strict=True)):
-        near = np.hypot(*org.T) <= W.END_RADIUS
+    # the end sample: the window's last scan alone, in its own frame (the submap's), as many
+    # points as it has up to EVIDENCE_POINTS
+    for k, j1 in enumerate(wa.bounds[:, 1]):
+        scan = np.asarray(seq.scans[wa.keyframes[j1]], np.float32).reshape(-1, 2)
+        scan = scan[np.all(np.isfinite(scan), axis=1)
+                    & (np.hypot(*scan.T) <= wa.params.crop_radius)]
         m = a.evidence.end_mask[k]
-        assert 0 < m.sum() == min(near.sum(), W.EVIDENCE_POINTS) < near.size
+        assert 0 < m.sum() == min(len(scan), W.EVIDENCE_POINTS)
         got = a.evidence.end_points[k][m].view(np.complex64)
-        assert np.isin(got, pts[near].astype(np.float32).view(np.complex64)).all()
+        assert np.isin(got, scan.view(np.complex64)).all()
+        np.testing.assert_array_equal(wa.last_points[k], scan)
 
 
 def test_the_one_scorer_gives_one_verdict_for_every_consumer(tmp_path):

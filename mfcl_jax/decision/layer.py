@@ -11,7 +11,7 @@ window, then per core mode (gate on/off, symmetry set) the shared core (``rule.c
 certification where some lane needs it (``rule.needs_certificate``, through ``sparse_cond``:
 a batch pays only for the windows that need one), each lane's rule (``rule.finish``) and
 commit machine (``machine.step``), the check of every reported commit against the window's
-last metre of scans (``drift``; off where ``init`` has no plan fields or the window no end
+last scan (``drift``; off where ``init`` has no plan fields or the window no end
 sample), the storey check (``storey``: no commit on a place several storeys share), and the
 baselines (``baselines.step``). Where the primary lane is about to enter COMMIT (and its run
 has searches left) the path is searched for rivals (``rivals.search``) and the window is
@@ -264,7 +264,7 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         0, 2 if pl >= 0 else 1, one_pass, carry
     )
     if world.fields is not None and ev.end_points is not None:
-        # every reported commit against the window's last metre of scans
+        # every reported commit against the window's last scan
         poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))
         v = drift.check(world.fields, poses, out.state == COMMIT, ev.end_points, ev.end_mask)
         held, out = machine.leave_drifted(held, out, v)

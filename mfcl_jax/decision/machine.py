@@ -167,7 +167,7 @@ def step(held: Held, raw: Decision, newest, p, use_gate) -> tuple[Held, Decision
 
 
 def leave_drifted(held: Held, out: Decision, verdict) -> tuple[Held, Decision]:
-    """Lanes ``(L,)`` whose reported COMMIT the window's last metre does not support
+    """Lanes ``(L,)`` whose reported COMMIT the window's last scan does not support
     (``drift.verdict``: ``DRIFTED`` or ``UNSUPPORTED``, else 0) report DEFER with that reason
     instead and hold no commit afterwards; the others are unchanged."""
     d = (verdict != 0) & (out.state == COMMIT)

@@ -111,7 +111,11 @@ def certify_core(k, c: Core, H, score, X, evidence, bounds, maps, p, rivals, riv
         g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, c.admitted, X[k],
         rivals, rivals_ok,
     )  # fmt: skip
-    return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots)
+    # a placement turned by a quarter-turn multiple from T* is ruled out by the free-space
+    # term only (``certify`` module docstring)
+    free_only = jax.vmap(lambda a: certify.relation(g.t_star, a)[0] == lattice.ROTATION)(comp)
+    return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots,
+                           free_only)  # fmt: skip
 
 
 def skipped(stats: certify.CertStats) -> certify.CertStats:

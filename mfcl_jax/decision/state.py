@@ -60,7 +60,7 @@ class WindowEvidence:
         valid: ``()`` bool (false: padding, state unchanged).
         last: ``()`` bool the run's last window (forced-choice baselines commit there).
         restart: ``()`` bool the first window of a new odometry segment.
-        end_points: ``(P, 2)`` the points of the window's last metre (window frame,
+        end_points: ``(P, 2)`` the points of the window's last scan (window frame,
             ``windows.end_sample``), fitted to the plan where a lane reports a commit
             (``drift``); end_mask: ``(P,)``. ``None``: no such sample, the check is off.
     """

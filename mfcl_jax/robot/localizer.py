@@ -238,8 +238,8 @@ class Localizer:
                 tr[: len(traj)] = traj
                 prev_end = j1
                 memory, dec, reason, n_cand = self._step(
-                    world, memory, *self._inputs(w.points[0], w.origins[0], w.X[0], w.t[0], tr,
-                                                 tm, j0 - base),
+                    world, memory, *self._inputs(w.points[0], w.origins[0], w.last_points[0],
+                                                 w.X[0], w.t[0], tr, tm, j0 - base),
                 )  # fmt: skip
                 yield WindowResult(
                     k=k, decision=jax.tree.map(np.asarray, dec), first=int(w.keyframes[j0]),
@@ -250,9 +250,9 @@ class Localizer:
                     unique_llr=self.params.unique_llr, storeys=self.floorplan.storeys,
                 )  # fmt: skip
 
-    def _inputs(self, pts, org, X, t, traj, traj_mask, start) -> tuple:
+    def _inputs(self, pts, org, last, X, t, traj, traj_mask, start) -> tuple:
         """The step's inputs after ``(world, memory)``: the window's points and origins
-        ``(n, 2)``, its pose ``X (3,)`` and time, the keyframes it adds (``Caps.step``) and
+        ``(n, 2)``, its last scan ``last (m, 2)`` (``Windows.last_points``), its pose ``X (3,)`` and time, the keyframes it adds (``Caps.step``) and
         its first keyframe in the segment."""
         cap = self._capacity
         n = len(pts)
@@ -266,7 +266,7 @@ class Localizer:
                           np.zeros(1, np.int32))  # fmt: skip
         return (registration.sanitize_submaps(sub), self._feats, X,
                 np.asarray(traj, np.float32), np.asarray(traj_mask, bool), np.int32(start),
-                (*evidence_sample(pts, org), *end_sample(pts, org)))  # fmt: skip
+                (*evidence_sample(pts, org), *end_sample(last)))  # fmt: skip
 
     def _prepare(self) -> None:
         """The step traced and compiled in the background (``Traced.prepare``) for inputs
@@ -276,7 +276,7 @@ class Localizer:
         world, memory = layer.split(layer.init(*self._init))
         z = np.zeros((0, 2), np.float32)
         step = self.params.caps.step
-        self._step.prepare(world, memory, *self._inputs(z, z, np.zeros(3), 0.0,
+        self._step.prepare(world, memory, *self._inputs(z, z, z, np.zeros(3), 0.0,
                                                         np.zeros((step, 3)), np.zeros(step),
                                                         0))  # fmt: skip
 

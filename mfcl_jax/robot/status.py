@@ -91,16 +91,16 @@ REASON_TEXT = {
         "so the commit is withdrawn (DEFER) and the next windows decide afresh.",
     ),
     "commit drifted": (
-        "the last metre of scans fits the plan off the commit's heading",
-        "The layer reports a commit only where the scans of the window's last metre, fitted "
-        "to the plan from the committed pose, stay within the tracking tolerance (3 deg) of "
+        "the newest scan fits the plan off the commit's heading",
+        "The layer reports a commit only where the window's last scan, fitted to the plan "
+        "from the committed pose, stays within the tracking tolerance (3 deg) of "
         "its heading: here the fit turned farther, so the odometry has turned the pose off "
-        "what the scans say. The commit is withdrawn (DEFER) and the next windows decide "
+        "what the scan says (drift, or odometry that arrives late at a turn). The commit is withdrawn (DEFER) and the next windows decide "
         "afresh.",
     ),
     "commit unsupported": (
-        "the last metre of scans touches no wall near the committed pose",
-        "The layer reports a commit only where the scans of the window's last metre touch "
+        "the newest scan touches no wall near the committed pose",
+        "The layer reports a commit only where the window's last scan touches "
         "the plan's walls near the committed pose: here they touch none, so the robot is in "
         "a stretch the plan does not show (or the pose is far off) and the pose rests on "
         "odometry alone. The commit is withdrawn (DEFER) and the next windows decide afresh.",

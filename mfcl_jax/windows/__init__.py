@@ -7,7 +7,6 @@ keyframe poses by LiDAR scan matching, ``padding`` lays many runs' windows into 
 """
 
 from mfcl_jax.windows.arrays import (
-    END_RADIUS,
     EVIDENCE_POINTS,
     Evidence,
     RunBatch,
@@ -39,7 +38,6 @@ from mfcl_jax.windows.submaps import (
 )
 
 __all__ = [
-    "END_RADIUS",
     "EVIDENCE_POINTS",
     "Cutter",
     "Evidence",

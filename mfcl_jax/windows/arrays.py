@@ -22,7 +22,6 @@ __all__ = [
     "Evidence",
     "EVIDENCE_POINTS",
     "evidence_sample",
-    "END_RADIUS",
     "end_sample",
     "bucket",
     "pad_submaps",
@@ -115,7 +114,7 @@ class Evidence:
             submap's points (deterministic).
         origins: ``(N, P, 2)`` their ray origins.
         mask: ``(N, P)`` bool.
-        end_points: ``(N, P, 2)`` the points of the window's last metre (``end_sample``),
+        end_points: ``(N, P, 2)`` the points of the window's last scan (``end_sample``),
             which the layer fits to the plan where it reports a commit (``decision.drift``);
             ``None`` where a caller has none (the check is then off).
         end_mask: ``(N, P)`` bool.
@@ -143,14 +142,12 @@ def evidence_sample(points, origins, n: int = EVIDENCE_POINTS):
     return out_p, out_o, mask
 
 
-END_RADIUS = 1.0  # m: the window's "last metre", scans whose origin is this near its last one
-
-
-def end_sample(points, origins, n: int = EVIDENCE_POINTS, radius: float = END_RADIUS):
-    """``(pts (n, 2), mask (n,))`` evenly spread over the points of ``points (m, 2)`` whose
-    ray origin lies within ``radius`` of the window's last scan (the frame's origin)."""
-    near = np.hypot(*np.asarray(origins, np.float64).reshape(-1, 2).T) <= radius
-    p, _, mask = evidence_sample(np.asarray(points)[near], np.asarray(origins)[near], n)
+def end_sample(last_scan, n: int = EVIDENCE_POINTS):
+    """``(pts (n, 2), mask (n,))`` evenly spread over ``last_scan (m, 2)``, the window's last
+    scan in its own frame (``Windows.last_points``): what ``decision.drift`` fits to the plan
+    at a commit's reported pose."""
+    pts = np.asarray(last_scan, np.float32).reshape(-1, 2)
+    p, _, mask = evidence_sample(pts, np.zeros_like(pts), n)
     return p, mask
 
 

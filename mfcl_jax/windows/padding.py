@@ -99,10 +99,11 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
         traj[r] = _pad_rows(w.odometry, T)
         traj_seg[r, :m] = w.segments
         traj_mask[r, :m] = True
-        for k, (pts, org) in enumerate(zip(w.points, w.origins, strict=True)):
+        for k, (pts, org, last) in enumerate(zip(w.points, w.origins, w.last_points,
+                                                 strict=True)):
             points[i, : len(pts)], origins[i, : len(pts)], mask[i, : len(pts)] = pts, org, True
             ev_p[i], ev_o[i], ev_m[i] = evidence_sample(pts, org)
-            end_p[i], end_m[i] = end_sample(pts, org)
+            end_p[i], end_m[i] = end_sample(last)
             X[i], run[i], window[i], t[i], building[i] = w.X[k], r, k, w.t[k], b
             submap[r, k] = i
             i += 1

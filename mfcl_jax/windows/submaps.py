@@ -152,6 +152,9 @@ class Windows:
         segments: ``(M,)`` odometry segment of every keyframe: 0, plus one after every jump,
             whether the input odometry's step shows it (``odometry_segments``) or the LiDAR
             odometry's jump test finds it (``scanmatch``). No window straddles a jump.
+        last_points: ``K`` arrays ``(n_k, 2)``: each window's last scan alone (its valid
+            points within the crop radius), in ``S_k``, its own frame: the only points that
+            no odometry increment has moved (``arrays.end_sample``).
     """
 
     keyframes: np.ndarray
@@ -165,6 +168,7 @@ class Windows:
     odometry: np.ndarray
     X_input: np.ndarray
     segments: np.ndarray
+    last_points: list
 
     def __len__(self) -> int:
         return len(self.bounds)
@@ -247,7 +251,17 @@ def _windows(seq, p: WindowParams, kf, odo, seg, start: int = 0, upto: int | Non
         odo,
         raw[last].reshape(-1, 3),
         seg,
+        [_own(seq.scans[kf[j1]], p.crop_radius) for _, j1 in bounds],
     )
+
+
+def _own(scan, crop_radius: float | None) -> np.ndarray:
+    """A scan's valid points within ``crop_radius`` of its origin, in its own frame."""
+    s = np.asarray(scan, np.float64).reshape(-1, 2)
+    keep = np.all(np.isfinite(s), axis=1)
+    if crop_radius is not None:
+        keep &= np.einsum("ij,ij->i", s, s) <= crop_radius**2
+    return s[keep].astype(np.float32)
 
 
 def window(w: Windows, k: int) -> Windows:
@@ -255,7 +269,7 @@ def window(w: Windows, k: int) -> Windows:
     sl = slice(k, k + 1)
     return Windows(
         w.keyframes, w.bounds[sl], w.points[sl], w.origins[sl], w.voxel[sl], w.X[sl], w.t[sl],
-        w.params, w.odometry, w.X_input[sl], w.segments,
+        w.params, w.odometry, w.X_input[sl], w.segments, w.last_points[sl],
     )  # fmt: skip
 
 

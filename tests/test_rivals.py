@@ -163,8 +163,12 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     idx = np.asarray(idx)[np.asarray(ok)]
     anchors = jnp.asarray(np.stack([A, shifted]), jnp.float32)
     poses = se2.compose(anchors[None], X[idx][:, None])
-    s, sb, f, fb = (np.asarray(a) for a in certify._window_scores(
-        poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0, certify.FREE_PER_RAY))
+    s, sb, f, fb = (
+        np.asarray(a)
+        for a in certify._window_scores(
+            poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0, certify.FREE_PER_RAY
+        )
+    )
     assert sb.shape == (len(idx), 2, certify.CERT_BLOCKS)
     scale = np.sqrt(certify.CERT_BLOCKS * certify.MARGIN_POINTS / ev[0].shape[1])
     window = s[:, 0] - s[:, 1]

@@ -85,8 +85,9 @@ def test_pack_and_concat_index_runs_and_submaps():
     # points as it has up to EVIDENCE_POINTS
     for k, j1 in enumerate(wa.bounds[:, 1]):
         scan = np.asarray(seq.scans[wa.keyframes[j1]], np.float32).reshape(-1, 2)
-        scan = scan[np.all(np.isfinite(scan), axis=1)
-                    & (np.hypot(*scan.T) <= wa.params.crop_radius)]
+        scan = scan[
+            np.all(np.isfinite(scan), axis=1) & (np.hypot(*scan.T) <= wa.params.crop_radius)
+        ]
         m = a.evidence.end_mask[k]
         assert 0 < m.sum() == min(len(scan), W.EVIDENCE_POINTS)
         got = a.evidence.end_points[k][m].view(np.complex64)

@@ -252,8 +252,9 @@ class Localizer:
 
     def _inputs(self, pts, org, last, X, t, traj, traj_mask, start) -> tuple:
         """The step's inputs after ``(world, memory)``: the window's points and origins
-        ``(n, 2)``, its last scan ``last (m, 2)`` (``Windows.last_points``), its pose ``X (3,)`` and time, the keyframes it adds (``Caps.step``) and
-        its first keyframe in the segment."""
+        ``(n, 2)``, its last scan ``last (m, 2)`` (``Windows.last_points``), its pose
+        ``X (3,)`` and time, the keyframes it adds (``Caps.step``) and its first keyframe in
+        the segment."""
         cap = self._capacity
         n = len(pts)
         points = np.zeros((1, cap, 2), np.float32)

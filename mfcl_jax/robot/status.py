@@ -93,10 +93,10 @@ REASON_TEXT = {
     "commit drifted": (
         "the newest scan fits the plan off the commit's heading",
         "The layer reports a commit only where the window's last scan, fitted to the plan "
-        "from the committed pose, stays within the tracking tolerance (3 deg) of "
-        "its heading: here the fit turned farther, so the odometry has turned the pose off "
-        "what the scan says (drift, or odometry that arrives late at a turn). The commit is withdrawn (DEFER) and the next windows decide "
-        "afresh.",
+        "from the committed pose, stays within the tracking tolerance (3 deg) of its "
+        "heading: here the fit turned farther, so the odometry has turned the pose off what "
+        "the scan says (drift, or odometry that arrives late at a turn). The commit is "
+        "withdrawn (DEFER) and the next windows decide afresh.",
     ),
     "commit unsupported": (
         "the newest scan touches no wall near the committed pose",

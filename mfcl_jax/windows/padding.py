@@ -99,8 +99,7 @@ def pack(items, capacity: int | None = None, min_capacity: int = 256) -> WindowB
         traj[r] = _pad_rows(w.odometry, T)
         traj_seg[r, :m] = w.segments
         traj_mask[r, :m] = True
-        for k, (pts, org, last) in enumerate(zip(w.points, w.origins, w.last_points,
-                                                 strict=True)):
+        for k, (pts, org, last) in enumerate(zip(w.points, w.origins, w.last_points, strict=True)):
             points[i, : len(pts)], origins[i, : len(pts)], mask[i, : len(pts)] = pts, org, True
             ev_p[i], ev_o[i], ev_m[i] = evidence_sample(pts, org)
             end_p[i], end_m[i] = end_sample(last)

@@ -178,11 +178,11 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     # the blocks are parts of the window: the shifted row is worse somewhere in them by more
     # than over the whole window (it differs at the row's end only)
     assert (sb[:, 0] - sb[:, 1]).max() > window.max()
-    # a turned competitor (``free_only``): the free-space term of the window or a block, or
+    # a turned competitor (``turned``): the free-space term of the window or a block, or
     # the whole score where two blocks of a window contradict it; favouring it stays the
     # whole window's test
     st_f = certify.certify(k, jnp.asarray(A, jnp.float32), comp, jnp.array([True]), X, ev,
-                           bounds, maps, p, free_only=jnp.array([True]))  # fmt: skip
+                           bounds, maps, p, turned=jnp.array([True]))  # fmt: skip
     two = np.sort(sb[:, 0] - sb[:, 1], axis=1)[:, -2] / scale
     free = (f[:, 0] - f[:, 1]).max(), (fb[:, 0] - fb[:, 1]).max(axis=1).max() / scale
     np.testing.assert_allclose(float(st_f.max_adv[0]), max(*free, two.max()), atol=1e-5)

@@ -37,7 +37,7 @@ explanation and the decision is AMBIGUOUS with ``C``'s kind (relative to ``T*``:
 with its period, a rotation, or multimodal; a mirrored wing shows up as one of these, since a
 reflection is not a rigid motion).
 
-Turned competitors (``free_only``). A building with a rotational self-motion ``g`` (two units
+Turned competitors (``turned``). A building with a rotational self-motion ``g`` (two units
 that are half-turn images of each other) is told apart from ``g T*`` only where its plan
 breaks the symmetry: a stub, a door, one wall. The two terms of the score weigh that
 differently. Rays that cross a plan wall under ``C`` (the free-space term) say that the plan
@@ -248,7 +248,7 @@ CHUNK = 16  # competitors scored together in one window
 
 
 def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int = 12,
-            free_only=None):  # fmt: skip
+            turned=None):  # fmt: skip
     """``CertStats`` of the competitors of ``T*`` at the newest window ``k``.
 
     Only what counts is scored: the windows of the scan-disjoint chain (at most ``n_slots``)
@@ -263,11 +263,12 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
             window's frame.
         bounds: ``(start (K,), end (K,))``; maps: ``DecisionMaps``; p: ``DecisionParams``.
         n_slots: static number of disjoint windows scored at most.
-        free_only: ``(C,)`` bool, the competitors that only the free-space term may
-            contradict (``FREE_ONLY``: the rotated images of ``T*``), or None (none).
+        turned: ``(C,)`` bool, the competitors turned from ``T*`` by a quarter-turn
+            multiple, contradicted only by the free-space term or by two blocks of a window
+            (module docstring), or None (none).
     """
     pts, org, pmask = evidence
-    free_only = jnp.zeros(comp.shape[0], bool) if free_only is None else free_only
+    turned = jnp.zeros(comp.shape[0], bool) if turned is None else turned
     start, end = bounds
     has = jnp.any(pmask, axis=1) & (jnp.arange(start.shape[0]) <= k)
     idx, ok = chain(k, start, end, has, n_slots)  # the chain first
@@ -276,7 +277,7 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
     n_pad = -(-n_c // CHUNK) * CHUNK
     order = jnp.argsort(~comp_ok, stable=True)  # competitors that count first
     order = jnp.concatenate([order, jnp.full(n_pad - n_c, order[0])])
-    free_only = free_only[order]
+    turned = turned[order]
     n_chunks = (jnp.sum(comp_ok) + CHUNK - 1) // CHUNK
     # a block's advantage at equal confidence with a whole window (module docstring)
     scale = math.sqrt(CERT_BLOCKS * MARGIN_POINTS / pts.shape[1])
@@ -301,7 +302,7 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
             # of the window contradict it (not one local feature)
             second = jnp.sort(sb_t[:1] - sb, axis=1)[:, -2] / scale
             contra_free = jnp.maximum(f_t[0] - f, jnp.max(fb_t[:1] - fb, axis=1) / scale)
-            only = jax.lax.dynamic_slice(free_only, (j * CHUNK,), (CHUNK,))
+            only = jax.lax.dynamic_slice(turned, (j * CHUNK,), (CHUNK,))
             contra = jnp.where(only, jnp.maximum(contra_free, second), contra)
             at = (j * CHUNK,)
             hi = jax.lax.dynamic_update_slice(

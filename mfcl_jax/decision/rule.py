@@ -112,10 +112,10 @@ def certify_core(k, c: Core, H, score, X, evidence, bounds, maps, p, rivals, riv
         rivals, rivals_ok,
     )  # fmt: skip
     # a placement turned by a quarter-turn multiple from T* is ruled out by the free-space
-    # term only (``certify`` module docstring)
-    free_only = jax.vmap(lambda a: certify.relation(g.t_star, a)[0] == lattice.ROTATION)(comp)
+    # term or by two blocks of a window (``certify`` module docstring)
+    turned = jax.vmap(lambda a: certify.relation(g.t_star, a)[0] == lattice.ROTATION)(comp)
     return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots,
-                           free_only)  # fmt: skip
+                           turned)  # fmt: skip
 
 
 def skipped(stats: certify.CertStats) -> certify.CertStats:

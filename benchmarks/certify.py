@@ -1,7 +1,7 @@
 """Certification timing: what the per-window blocks cost (``decision.certify``).
 
 The certification re-scores every window of a prefix under every explanation at its best fit
-(``certify._window_scores``, 13 poses per explanation) and also scores each window's
+(``fitted.window_scores``, 13 poses per explanation) and also scores each window's
 evidence again in ``CERT_BLOCKS`` contiguous blocks at the fitted pose. This script times, in
 one run so the ratios are comparable:
 
@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from mfcl_jax import se2  # noqa: E402
-from mfcl_jax.decision import DecisionParams, certify  # noqa: E402
+from mfcl_jax.decision import DecisionParams, certify, fitted  # noqa: E402
 from mfcl_jax.sim.synthetic import HIDDEN_ANCHOR as A  # noqa: E402
 from mfcl_jax.sim.synthetic import PITCH, row_walk  # noqa: E402
 from mfcl_jax.sim.synthetic import ROW_K as K  # noqa: E402
@@ -83,8 +83,8 @@ def main():
 
     def fit(n_blocks):
         def f(poses, pts, org, m):
-            return certify._window_scores(poses, pts, org, m, maps, p.cert_sigma, 1.0,
-                                          certify.FREE_PER_RAY, n_blocks=n_blocks)  # fmt: skip
+            return fitted.window_scores(poses, pts, org, m, maps, p.cert_sigma, 1.0,
+                                          fitted.FREE_PER_RAY, n_blocks=n_blocks)  # fmt: skip
 
         return f
 

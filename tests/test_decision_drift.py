@@ -114,7 +114,7 @@ def test_c2_immunity_under_drift():
         out = run_all([run])
         # States, kinds, counts and anchors are unchanged. The period reported with an
         # AMBIGUOUS translation is that of the strongest live competitor; fitted to the
-        # windows (certify.REFINE), a flood candidate near the alias can be that competitor,
+        # windows (fitted.REFINE), a flood candidate near the alias can be that competitor,
         # so the reported period may move by a fraction of the grouping tolerance.
         for f in FIELDS:
             np.testing.assert_array_equal(getattr(out, f)[..., :5], getattr(RECENT, f)[..., :5])

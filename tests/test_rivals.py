@@ -107,12 +107,12 @@ def test_a_live_rival_blocks_a_commit_from_the_prefix_it_was_found_at():
 
 
 def test_certification_scores_every_explanation_at_its_best_fit():
-    """Each explanation is scored at its fit to each window (``certify.REFINE``): the truth
+    """Each explanation is scored at its fit to each window (``REFINE``): the truth
     moved by a few centimetres is not contradicted (without the fit it loses by misfit, more
     than the margin), while the one-room shift of the row, whose end the robot sees
     through the aligned doors, stays worse in every window and is ruled out at the default
     margin once rays carry free-space samples."""
-    from mfcl_jax.decision import certify
+    from mfcl_jax.decision.fitted import FREE_PER_RAY, REFINE, window_scores
 
     maps, run = row_walk()
     X = jnp.asarray(run["X"])
@@ -123,18 +123,18 @@ def test_certification_scores_every_explanation_at_its_best_fit():
     poses = se2.compose(anchors[None], X[:, None])
 
     def adv(steps, n_free):
-        s, *_ = certify._window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0,
+        s, *_ = window_scores(poses, *ev, maps, DecisionParams().cert_sigma, 1.0,
                                        n_free, steps)  # fmt: skip
         return np.asarray(s[:, :1] - s[:, 1:])  # (windows, 2)
 
     m = DecisionParams().cert_margin
-    raw, fitted = adv((), certify.FREE_PER_RAY), adv(certify.REFINE, certify.FREE_PER_RAY)
+    raw, fitted = adv((), FREE_PER_RAY), adv(REFINE, FREE_PER_RAY)
     assert raw[:, 0].max() > m  # unfitted, the misfit alone would "contradict" the truth
     # fitted, the moved truth is no longer contradicted anywhere, and its misfit shrinks
     assert np.abs(fitted[:, 0]).max() < m
     assert np.abs(fitted[:, 0]).max() < 0.5 * raw[:, 0].max()
     assert fitted[:, 1].min() > 0.0 and fitted[:, 1].max() >= m
-    assert adv(certify.REFINE, 1)[:, 1].max() < m  # the sensor positions alone: not enough
+    assert adv(REFINE, 1)[:, 1].max() < m  # the sensor positions alone: not enough
     base = _decide(run, maps)
     assert base.state[-1] == 2
     k_c = int(np.argmax(base.state == 2))
@@ -146,7 +146,7 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     """``certify.certify`` counts each window's blocks toward contradicting a competitor
     (``max_adv``), a block's advantage divided by ``sqrt(CERT_BLOCKS * MARGIN_POINTS / P)``,
     and never toward favouring it (``min_adv`` stays the whole-window test)."""
-    from mfcl_jax.decision import certify
+    from mfcl_jax.decision import certify, fitted
 
     maps, run = row_walk()
     X = jnp.asarray(run["X"])
@@ -165,8 +165,8 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     poses = se2.compose(anchors[None], X[idx][:, None])
     s, sb, f, fb = (
         np.asarray(a)
-        for a in certify._window_scores(
-            poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0, certify.FREE_PER_RAY
+        for a in fitted.window_scores(
+            poses, *(e[idx] for e in ev), maps, p.cert_sigma, 1.0, fitted.FREE_PER_RAY
         )
     )
     assert sb.shape == (len(idx), 2, certify.CERT_BLOCKS)

@@ -15,18 +15,9 @@ the top-1 consensus never sees), and the rivals of the whole path found by the g
 where a commit was about to happen (``rivals``). A competitor that places the robot within
 ``CORRECT`` of where ``T*`` does is the same answer and is not a competitor.
 
-Fair comparison. The score's kernel is sharp (``cert_sigma``, 7 cm), so a pose a few
-centimetres off a window loses much of its score. ``T*`` is an average of recent champions
-and each window's anchor moves with the odometry's drift, while a runner-up candidate or a
-rival of the global search is fitted to its own window or path: compared as they come, the
-less-fitted explanation loses by its misfit, not by the walls. So every explanation
-(``T*`` included) is scored in every window at its best fit within a few centimetres and
-tenths of a degree (``REFINE``: two rounds of steps along each axis, 13 poses), the same for all.
-Measured before this rule: a half-turn rival of a symmetric building was "contradicted" by
-one window (advantage 0.20) and "favoured" by another (-0.08), both by misfit; fitted, it
-ties in both (0.05, 0.01). Each ray also carries ``FREE_PER_RAY`` free-space samples (at 0,
-1/4, 1/2 and 3/4 of its free length), so an explanation under which the robot saw through
-a plan wall is penalised, not only one that puts the sensor in a wall.
+Fair comparison: every explanation (``T*`` included) is scored in every window at its best
+fit within a few centimetres and tenths of a degree, with free-space samples along each ray
+(``fitted``).
 
 Per competitor the advantage ``adv_w = s_w(T*) - s_w(C)`` gives two numbers, the largest and
 the smallest advantage over the windows; ``finish`` compares them with the margin
@@ -53,12 +44,8 @@ so placed, since the room-based ``symmetry`` misses the half turn of a building 
 rectangles) is ruled out by the free-space term (the window's or a block's, at the usual
 scales), or by the whole score only where two blocks of one window contradict it: one local
 feature does not rule a turned placement out, walls that differ around the robot do.
-Measured on the benchmark's rotational, bays, mirror, ring and offices runs (60 nominal, 48
-near-symmetric): the three half-turn false commits of ``stub_twin`` are gone, one
-identifiable rotational run abstains and two commit later (13 -> 15, 10 -> 20 windows).
-The free-space term alone removed them too but cost six identifiable nominal runs (mirror,
-ring, rotational) and moved the median commit from 22.5 to 28.4 m; the whole window alone
-(no block) left two of the three. Translated competitors keep every block: offices whose
+What this costs and what the alternatives did is measured in ``docs/benchmark.md``.
+Translated competitors keep every block: offices whose
 walls differ from a shifted copy at one doorway are told apart by one block, and a period
 shift is the translational probe's case.
 
@@ -84,7 +71,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.frontend import verify
+from mfcl_jax.decision.fitted import FREE_PER_RAY, window_scores
 
 __all__ = [
     "CertStats",
@@ -98,10 +85,6 @@ __all__ = [
 ]
 
 CORRECT = (1.0, math.radians(5.0))  # same answer: the robot placed within 1 m and 5 deg
-# Every explanation is scored at its best fit to each window: two rounds of one step either way
-# along x, y and the heading (6 cm / 0.6 deg, then 2 cm / 0.2 deg; see the module docstring).
-REFINE = ((0.06, math.radians(0.6)), (0.02, math.radians(0.2)))
-FREE_PER_RAY = 4  # free-space samples per ray (a ray through a plan wall is penalised)
 CERT_BLOCKS = 4  # contiguous blocks of each window's evidence, each tested on its own
 MARGIN_POINTS = 128  # evidence points per window that ``cert_margin`` was set for
 
@@ -181,69 +164,6 @@ def competitors(t_star, aliases, aliases_ok, groups, groups_ok, H, score, visibl
     return anchors, ok
 
 
-def _moves(steps) -> tuple:
-    """The refinement as a table: per step the axis, the signed step and whether it starts a
-    new axis (both signs of an axis are tried from the same centre)."""
-    rows = [(axis, sign * st, sign > 0)
-            for st_xy, st_th in steps
-            for axis, st in ((0, st_xy), (1, st_xy), (2, st_th))
-            for sign in (1.0, -1.0)]  # fmt: skip
-    axis, step, first = zip(*rows, strict=True) if rows else ((), (), ())
-    return (jnp.asarray(axis, jnp.int32), jnp.asarray(step, jnp.float32),
-            jnp.asarray(first, bool))  # fmt: skip
-
-
-def _window_scores(poses, pts, org, pmask, maps, sigma, lam, n_free: int, steps=REFINE,
-                   n_blocks: int = CERT_BLOCKS):  # fmt: skip
-    """Verification score of each window (rows) under each pose ``(W, C, 3)``, each pose at
-    its best fit: per round of ``steps`` (``(step_xy, step_theta)``), a step either way along
-    x, y and the heading in turn (in the window's frame), each kept where it scores higher.
-
-    Returns:
-        ``(scores (W, C), block_scores (W, C, n_blocks), free (W, C), free_blocks (W, C,
-        n_blocks))``: the rest at the fitted poses: per contiguous block of each window's
-        points (``verify.block_scores``), and the free-space term alone (``-lam`` times the
-        mean penalty of the rays' free samples) of the window and of each block.
-    """
-    axis, step, first = _moves(steps)
-
-    def one_window(pose_c, p, o, m):
-        q, q_ok = verify.free_samples(p, o, m, n_free, 0.3)
-
-        def one(y):
-            return verify.score_fields(
-                y, p, m, q, q_ok, maps.origin, maps.res, maps.sdf4, maps.pen4, sigma, lam
-            )
-
-        def blocks(y):
-            hit, pen = verify.point_terms(
-                y, p, q, maps.origin, maps.res, maps.sdf4, maps.pen4, sigma
-            )
-            no_hit = jnp.zeros_like(hit)
-            # the full score per block, and its free-space term alone (window, then blocks)
-            return (verify.block_scores(hit, pen, m, q_ok, n_blocks, lam),
-                    -lam * jnp.sum(jnp.where(q_ok, pen, 0.0))
-                    / jnp.maximum(jnp.sum(q_ok), 1).astype(pen.dtype),
-                    verify.block_scores(no_hit, pen, m, q_ok, n_blocks, lam))  # fmt: skip
-
-        def body(carry, mv):
-            y, best, centre = carry
-            ax, st, new_axis = mv
-            centre = jnp.where(new_axis, y, centre)
-            move = jnp.zeros(3, y.dtype).at[ax].set(st)
-            cand = se2.compose(centre, move[None])
-            sc = jax.vmap(one)(cand)
-            better = sc > best
-            return (jnp.where(better[:, None], cand, y), jnp.where(better, sc, best), centre), None
-
-        y = pose_c  # (C, 3)
-        (y, best, _), _ = jax.lax.scan(body, (y, jax.vmap(one)(y), y), (axis, step, first),
-                                       length=len(steps) * 6)  # fmt: skip
-        return (best, *jax.vmap(blocks)(y))
-
-    return jax.vmap(one_window)(poses, pts, org, pmask)
-
-
 CHUNK = 16  # competitors scored together in one window
 
 
@@ -284,8 +204,8 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
 
     def scores(w, anchors):
         poses = se2.compose(anchors, X[w][None])[None]  # (1, n, 3)
-        out = _window_scores(poses, pts[w][None], org[w][None], pmask[w][None], maps,
-                             p.cert_sigma, 1.0, FREE_PER_RAY)  # fmt: skip
+        out = window_scores(poses, pts[w][None], org[w][None], pmask[w][None], maps,
+                            p.cert_sigma, 1.0, FREE_PER_RAY, n_blocks=CERT_BLOCKS)  # fmt: skip
         return tuple(a[0] for a in out)
 
     def window(i, acc):

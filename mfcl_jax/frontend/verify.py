@@ -40,6 +40,8 @@ from mfcl_jax.frontend.materialize import materialize
 __all__ = [
     "FAR",
     "block_scores",
+    "block_terms",
+    "term_means",
     "free_samples",
     "surface_fields",
     "stack4",
@@ -244,13 +246,25 @@ def score_fields(pose, pts, ok, q, q_ok, origin, res, sdf4, pen4, sigma, lam):
     """``score`` with the fields given explicitly (``origin (2,)``, static ``res``, ``sdf4``,
     ``pen4``), for callers that hold them outside ``FloorplanFeatures`` (the certification)."""
     hit, pen = point_terms(pose, pts, q, origin, res, sdf4, pen4, sigma)
-    return _dot_mean(hit, ok) - lam * _dot_mean(pen, q_ok)
+    h, p = term_means(hit, pen, ok, q_ok)
+    return h - lam * p
+
+
+def term_means(hit, pen, ok, q_ok):
+    """The two means ``score_fields`` weighs: ``(mean hit over ok, mean pen over q_ok)``."""
+    return _dot_mean(hit, ok), _dot_mean(pen, q_ok)
 
 
 def block_scores(hit, pen, ok, q_ok, n_blocks: int, lam):
     """``score_fields`` of ``n_blocks`` contiguous blocks of the points (by rank among the
     valid points ``ok (n,)``, each block with its points' free samples ``q_ok (n * M,)``,
     each point's samples together, as ``free_samples`` lays them out); ``(n_blocks,)``."""
+    hit_mean, pen_mean = block_terms(hit, pen, ok, q_ok, n_blocks)
+    return hit_mean - lam * pen_mean
+
+
+def block_terms(hit, pen, ok, q_ok, n_blocks: int):
+    """``term_means`` of each block of ``block_scores``: ``(hit (n_blocks,), pen (n_blocks,))``."""
     n = ok.shape[0]
     rank = jnp.cumsum(ok) - 1
     block = jnp.where(ok, (rank * n_blocks) // jnp.maximum(jnp.sum(ok), 1), -1)
@@ -260,7 +274,7 @@ def block_scores(hit, pen, ok, q_ok, n_blocks: int, lam):
     onehot_q = jnp.where(q_ok[:, None], jnp.repeat(onehot, q_ok.shape[0] // n, axis=0), 0.0)
     hit_mean = (jnp.where(ok, hit, 0.0) @ onehot) / jnp.maximum(onehot.sum(0), 1.0)
     pen_mean = (jnp.where(q_ok, pen, 0.0) @ onehot_q) / jnp.maximum(onehot_q.sum(0), 1.0)
-    return hit_mean - lam * pen_mean
+    return hit_mean, pen_mean
 
 
 def scores(poses, pts, ok, q, q_ok, feats, sigma, lam):

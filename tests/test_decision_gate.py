@@ -153,3 +153,34 @@ def test_lattice_detects_fundamental_and_rejects_subharmonics():
     assert not bool(ok)
     ok, _ = _detect([[0, 0, 0.1], [PITCH, 0, 0.1], [4.0, 3.0, 0.1]])  # incoherent third group
     assert not bool(ok)
+
+
+def test_compact_lattice_test_equals_the_full_one_for_any_contender_mask():
+    """``detect_from`` reads only the contenders' generators (``SLOTS`` of them at most, in
+    index order), and every generator where more contend: the verdict and period are those of
+    the full test for every mask, over a batch that mixes both (``vmap``: the full form runs in
+    the rows with more contenders only)."""
+    rng = np.random.default_rng(3)
+    g = 16
+    k = rng.integers(-3, 4, g).astype(np.float32)
+    k[:9], k[10] = 0, 1  # eight groups beside the winner: no period among their generators
+    anchors = np.stack([k * PITCH + rng.normal(0, 0.3, g), rng.normal(0, 0.3, g),
+                        0.1 + rng.normal(0, 0.03, g)], -1).astype(np.float32)  # fmt: skip
+    anchors[[11, 12]] = [[4.0, 3.0, 0.1], [PITCH / 2, 0.0, 0.1]]  # off the lattice
+    offsets, omask = ROW.sym.offsets[0], ROW.sym.offsets_mask[0]
+    fit = lattice.prepare(jnp.asarray(anchors), jnp.int32(0), offsets, 2.5)
+    masks = rng.random((64, g)) < rng.uniform(0.05, 0.95, (64, 1))
+    masks[:, 0] = True  # the winner
+    masks[:8, [11, 12]] = False  # some coherent masks of many contenders
+    masks[8] = np.isin(np.arange(g), [0, *range(1, 9), 10])  # the period only from the ninth
+    n_others = masks[:, 1:].sum(1)
+    assert (n_others > lattice.SLOTS).sum() >= 8 and (n_others <= lattice.SLOTS).sum() >= 8
+
+    def both(m):
+        ops = (fit, m, jnp.int32(0), offsets, omask, 2.5, np.deg2rad(12.0))
+        return lattice.detect_from(*ops), lattice._full(3)(ops)
+
+    (ok, tau), (ok_full, tau_full) = jax.jit(jax.vmap(both))(jnp.asarray(masks))
+    assert np.asarray(ok).tolist() == np.asarray(ok_full).tolist()
+    assert np.asarray(ok).any() and not np.asarray(ok).all() and bool(ok[8])
+    np.testing.assert_allclose(np.asarray(tau), np.asarray(tau_full), atol=1e-5)

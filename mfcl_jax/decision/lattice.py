@@ -22,12 +22,14 @@ once (``prepare``) and each contender mask costs masked reductions (``detect_fro
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
+from mfcl_jax.sparse_cond import sparse_cond
 
 __all__ = [
     "KIND_NONE",
@@ -104,15 +106,54 @@ def prepare(anchor, winner, offsets, eps_t, n_sub: int = 3) -> LatticeFit:
     )
 
 
+# Contenders besides the winner whose generators ``detect_from`` reads in its compact form; a
+# mask with more takes the full form (``sparse_cond``: only those rows pay for it).
+SLOTS = 8
+
+
 def detect_from(
     fit: LatticeFit, contender, winner, offsets, offsets_mask, eps_t, eps_theta, n_sub: int = 3
 ):
-    """``detect`` for one contender mask from a shared ``LatticeFit`` (same arguments)."""
+    """``detect`` for one contender mask from a shared ``LatticeFit`` (same arguments).
+
+    Only generators of contenders can be valid, so where at most ``SLOTS`` groups contend
+    besides the winner, only theirs are tested (in index order: the same pick among ties);
+    a mask with more contenders is tested on every generator. Lanes evaluate it once each, so
+    this is most of what a lane costs."""
     g = contender.shape[0]
+    others = contender & (jnp.arange(g) != winner)
+    ops = (fit, contender, winner, offsets, offsets_mask, eps_t, eps_theta)
+    if SLOTS >= g:
+        return _full(n_sub)(ops)
+    idx = jnp.argsort(~others, stable=True)[:SLOTS]  # the contenders first, in index order
+    gens = (idx[:, None] * n_sub + jnp.arange(n_sub)).reshape(-1)
+    compact = _detect(*ops, jnp.repeat(others[idx], n_sub), gens)
+    many = jnp.sum(others) > SLOTS
+    full = sparse_cond(many, _full(n_sub), ops)
+    return jax.tree.map(lambda a, b: jnp.where(many, a, b), full, compact)
+
+
+@functools.lru_cache(maxsize=None)
+def _full(n_sub: int):
+    """``detect_from`` on every generator, as a function of its operands (``sparse_cond``)."""
+
+    def full(ops):
+        fit, contender, winner = ops[:3]
+        others = contender & (jnp.arange(contender.shape[0]) != winner)
+        return _detect(*ops, jnp.repeat(others, n_sub), None)
+
+    return full
+
+
+def _detect(fit, contender, winner, offsets, offsets_mask, eps_t, eps_theta, source_ok, gens):
+    """The verdict from the generators ``gens`` (indices into ``fit.gen``; None: all) whose
+    source group contends (``source_ok``)."""
     d = fit.d
     offsets = offsets.astype(d.dtype)
+    pick = (lambda a: a) if gens is None else (lambda a: a[gens])
+    k_gen, ok_gen = pick(fit.k_gen), pick(fit.ok_gen)
     yaw_ok = jnp.all(jnp.where(contender, fit.dth <= eps_theta, True))
-    gen_ok = jnp.repeat(contender & (jnp.arange(g) != winner), n_sub) & fit.gen_len_ok
+    gen_ok = source_ok & pick(fit.gen_len_ok)
 
     def coherent(ok):  # (C, G) residual tests -> (C,) every contender fits
         return jnp.all(jnp.where(contender[None], ok, True), axis=-1)
@@ -122,7 +163,7 @@ def detect_from(
         den = jnp.sum(kc * kc, axis=-1)
         return jnp.einsum("cg,gd->cd", kc, d) / jnp.maximum(den, 1.0)[:, None], den
 
-    tau, den = refine(fit.k_gen)
+    tau, den = refine(k_gen)
     # Validate against the layout: the nearest congruent-room offset must be within eps_t and
     # the anchors must also be coherent with that offset itself (this rejects generators that
     # only fit through loose integer multiples, e.g. 2/3 of the pitch).
@@ -132,7 +173,7 @@ def detect_from(
     room = offsets[near]
     layout_ok = jnp.min(dist, axis=-1) <= eps_t
     tau, den_room = refine(fit.k_off[near])
-    valid = gen_ok & coherent(fit.ok_gen) & layout_ok & coherent(fit.ok_off[near])
+    valid = gen_ok & coherent(ok_gen) & layout_ok & coherent(fit.ok_off[near])
     valid = valid & (den > 0) & (den_room > 0)
     length = jnp.where(valid, jnp.linalg.norm(room, axis=-1), jnp.inf)
     best = jnp.argmin(length)

@@ -190,9 +190,14 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
                           ln.use_unique, ln.unique_llr, ln.use_grid, ln.grid_margin)  # fmt: skip
 
 
-# jitted (and inlined when the step compiles) so that the shape of its output and the loop
-# below share one trace of it
+# jitted (and inlined when the step compiles): ``update``'s two decisions share one trace
 _decide_once = jax.jit(_decide)
+
+
+def _decide_again(ops):
+    """The decision with the rivals just found (``update``'s second decision)."""
+    world, h, cores, held, riv, riv_ok, uniq, gstat = ops
+    return _decide_once(world, h, cores, held, riv, riv_ok, jnp.bool_(True), uniq, gstat)
 
 
 def _search(ops):
@@ -240,29 +245,22 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         open_lane = jnp.any(world.lanes.use_grid & ~state.held.committed)
         grid, gstat = early.grid_test(world, grid, h, path, c0, ev, open_lane)
 
-    def one_pass(i, carry):
-        # Pass 0 decides; where the primary lane is about to enter COMMIT (and searches are
-        # left) the path is searched for rivals and pass 1 decides again with them. A loop,
-        # so the program holds one copy of the decision.
-        riv, riv_ok, searches, searched, held, out = carry
-        allow = (i == 0) | searched
-        again = _decide_once(world, h, cores, state.held, riv, riv_ok, allow, uniq, gstat)
-        held, out = _where(allow, again, (held, out))
-        if pl >= 0:
-            enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
-            do = (i == 0) & enter & (searches < world.rival_params.max_searches) & ev.valid
-            found = sparse_cond(do, _search, (world, h, riv, riv_ok, searches))
-            riv, riv_ok = _where(do, found, (riv, riv_ok))
-            searches, searched = searches + do.astype(jnp.int32), searched | do
-        return riv, riv_ok, searches, searched, held, out
-
-    shape = jax.eval_shape(_decide_once, world, h, cores, state.held, state.rivals,
-                           state.rivals_ok, jnp.bool_(True), uniq, gstat)[1]  # fmt: skip
-    zeros = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shape)
-    carry = (state.rivals, state.rivals_ok, state.searches, jnp.bool_(False), state.held, zeros)
-    riv, riv_ok, searches, searched, held, out = jax.lax.fori_loop(
-        0, 2 if pl >= 0 else 1, one_pass, carry
-    )
+    # The decision; where the primary lane is about to enter COMMIT (and searches are left)
+    # the path is searched for rivals and the window is decided again with them. The second
+    # decision runs only in the rows that searched (``sparse_cond``): a few in a hundred.
+    held, out = _decide_once(world, h, cores, state.held, state.rivals, state.rivals_ok,
+                             jnp.bool_(True), uniq, gstat)  # fmt: skip
+    riv, riv_ok, searches = state.rivals, state.rivals_ok, state.searches
+    searched = jnp.bool_(False)
+    if pl >= 0:
+        enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
+        searched = enter & (searches < world.rival_params.max_searches) & ev.valid
+        found = sparse_cond(searched, _search, (world, h, riv, riv_ok, searches))
+        riv, riv_ok = _where(searched, found, (riv, riv_ok))
+        searches = searches + searched.astype(jnp.int32)
+        again = sparse_cond(searched, _decide_again,
+                            (world, h, cores, state.held, riv, riv_ok, uniq, gstat))  # fmt: skip
+        held, out = _where(searched, again, (held, out))
     if world.fields is not None and ev.end_points is not None:
         # every reported commit against the window's last scan
         poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))

@@ -88,8 +88,9 @@ def thin_scan(scan, p: ScanMatchParams) -> tuple[np.ndarray, np.ndarray]:
     r2 = np.einsum("ij,ij->i", s, s)
     s = s[np.all(np.isfinite(s), axis=1) & (r2 <= p.max_range**2) & (r2 > 1e-4)]
     if len(s):
-        cell = np.floor(s / p.voxel).astype(np.int64)
-        _, first = np.unique(cell, axis=0, return_index=True)
+        cell = np.floor(s / p.voxel).astype(np.int64)  # within max_range: |cell| < 2^20
+        code = (cell[:, 0] + (1 << 20)) * (1 << 21) + (cell[:, 1] + (1 << 20))
+        _, first = np.unique(code, return_index=True)  # one int64 per cell: a 1-D sort
         s = s[np.sort(first)]
     if len(s) > p.points:
         s = s[np.linspace(0, len(s) - 1, p.points).round().astype(int)]

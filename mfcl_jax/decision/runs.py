@@ -9,6 +9,7 @@ once, by the same ``update`` a robot calls."""
 from __future__ import annotations
 
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from functools import partial
 
@@ -213,11 +214,10 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
     R, K = np.asarray(inputs.evidence.valid).shape
     tm = {"compile_s": 0.0, "run_s": 0.0, "searches": 0}
     out, done = None, 0
-    for c in _calls(inputs, run_building, floorplans, params, lanes, spec, **kw):
+    for c in _ahead(_calls(inputs, run_building, floorplans, params, lanes, spec, **kw)):
         t0 = time.perf_counter()
-        fn = _COMPILED.get(c.key)
-        _COMPILED[c.key] = fn = c.make() if fn is None else (
-            fn.result() if isinstance(fn, Pending) else fn)  # fmt: skip
+        fn = _COMPILED[c.key]
+        _COMPILED[c.key] = fn = fn.result() if isinstance(fn, Pending) else fn
         tm["compile_s"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         dec = jax.block_until_ready(fn(*c.args))
@@ -232,6 +232,28 @@ def decide_runs(inputs: RunInputs, run_building, floorplans, params: DecisionPar
             progress(done)
     tm["searches"] = int(np.asarray(out.searched)[..., 0].sum()) if out is not None else 0
     return out, tm
+
+
+def _ahead(calls):
+    """``calls`` in order, each one's program compiling (``Pending``, one compilation at a
+    time) before it is yielded, and the next program's as soon as the call before it is: the
+    calls are read one program ahead (those of the current program buffered: one size class's
+    chunks), so a size class compiles while the one before it runs."""
+    calls, buf = iter(calls), deque()
+
+    def fill():  # buffer calls up to the first one of a program not compiled yet
+        for c in calls:
+            buf.append(c)
+            if c.key not in _COMPILED:
+                _COMPILED[c.key] = Pending(c.make, "mfcl-compile")
+                return
+
+    fill()
+    while buf:
+        c = buf.popleft()
+        if all(b.key == c.key for b in buf):
+            fill()
+        yield c
 
 
 def wait_compiled() -> None:

@@ -38,7 +38,7 @@ def _next(pred, start):
     return jnp.min(jnp.where(pred & (idx >= start), idx, pred.shape[0]))
 
 
-def sparse_cond(pred, f, x):
+def sparse_cond(pred, f, x, dense: bool = False):
     """``f(x)`` if ``pred`` else zeros of its shape; under ``vmap`` only true rows compute.
 
     Args:
@@ -46,6 +46,9 @@ def sparse_cond(pred, f, x):
         f: a pure function of the pytree ``x``. It must not close over traced values (pass
             them in ``x``): a batching rule cannot see inside a closure.
         x: operands.
+        dense: under ``vmap``, where every row's predicate holds, compute ``f`` batched
+            instead of row by row (a second copy of ``f`` in the batched program; for a branch
+            that every row takes at some calls and few at others).
 
     Returns:
         ``f(x)``, or a pytree of zeros shaped like it.
@@ -75,7 +78,15 @@ def sparse_cond(pred, f, x):
             out = jax.tree.map(lambda o, v: o.at[i].set(v), out, y)
             return _next(pred, i + 1), out
 
-        _, out = jax.lax.while_loop(lambda c: c[0] < axis_size, body, (_next(pred, 0), out))
+        def sparse(_):
+            return jax.lax.while_loop(lambda c: c[0] < axis_size, body, (_next(pred, 0), out))[1]
+
+        if dense:
+            axes = jax.tree.map(lambda b: 0 if b else None, xb)
+            out = jax.lax.cond(jnp.all(pred), lambda _: jax.vmap(f, in_axes=(axes,))(x), sparse,
+                               None)  # fmt: skip
+        else:
+            out = sparse(None)
         return out, jax.tree.map(lambda _: True, out)
 
     return branch(pred, x)

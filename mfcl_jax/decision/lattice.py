@@ -133,7 +133,7 @@ def detect_from(
     return jax.tree.map(lambda a, b: jnp.where(many, a, b), full, compact)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _full(n_sub: int):
     """``detect_from`` on every generator, as a function of its operands (``sparse_cond``)."""
 

@@ -27,17 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
-from mfcl_jax.decision import (
-    baselines,
-    certify,
-    drift,
-    early,
-    gate,
-    machine,
-    rivals,
-    rule,
-    uniqueness,
-)
+from mfcl_jax.decision import baselines, drift, early, gate, machine, passes, rivals, rule
 from mfcl_jax.decision import grid as G
 from mfcl_jax.decision.anchors import sanitize
 from mfcl_jax.decision.history import (
@@ -53,10 +43,10 @@ from mfcl_jax.decision.lanes import Lanes, LaneSpec
 from mfcl_jax.decision.maps import DecisionMaps
 from mfcl_jax.decision.outcome import COMMIT, Decision
 from mfcl_jax.decision.params import DecisionParams
+from mfcl_jax.decision.passes import where_tree as _where
 from mfcl_jax.decision.state import LayerState, WindowEvidence, World
 from mfcl_jax.decision.storey import leave_shared
 from mfcl_jax.frontend.path_search import PlanFields
-from mfcl_jax.sparse_cond import sparse_cond
 
 __all__ = ["World", "WindowEvidence", "LayerState", "init", "update", "advance", "split", "join"]
 
@@ -96,10 +86,6 @@ def init(maps: DecisionMaps, params: DecisionParams, caps: Caps, lanes: Lanes,
     return _fresh(world)
 
 
-def _where(c, a, b):
-    return jax.tree.map(lambda x, y: jnp.where(c, x, y), a, b)
-
-
 def advance(state: LayerState, traj, traj_mask) -> LayerState:
     """Keyframes that arrive without a window (more than ``Caps.step`` since the last one)."""
     h = state.history
@@ -124,95 +110,11 @@ def _cores(world: World, h: History, path: Path, cons):
     return jax.vmap(one)(ug, q)
 
 
-def _certify(ops):
-    world, h, c, riv, riv_ok = ops
-    ev = (h.ev_points, h.ev_origins, h.ev_mask)
-    return rule.certify_core(h.n - 1, c, h.H, h.score, h.X, ev, (h.start, h.end), world.maps,
-                             world.params, riv, riv_ok, world.caps.cert_slots)  # fmt: skip
-
-
-def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq=None,
-            gstat=None):  # fmt: skip
-    """Every lane's decision at the newest window, given the rivals: certification where
-    needed (and ``allow``ed), the rule, the early tests' commit where a lane reads one
-    (``early``: uniqueness, evidence grid), the commit machine. Returns ``(held,
-    reported)``."""
-    k = h.n - 1
-    p, ln = world.params, world.lanes
-    modes = world.spec.modes
-    sym_of_mode = jnp.asarray([m[1] for m in modes], jnp.int32)
-
-    def mode_of(tree, m):
-        return jax.tree.map(lambda a: a[m], tree)
-
-    need = jax.vmap(
-        lambda m, ug, uc, bm, hl: rule.needs_certificate(mode_of(cores, m), p, ug, uc, bm, hl)
-    )(ln.mode, ln.use_gate, ln.use_cert, ln.b_min, held)
-    need_mode = jnp.any((ln.mode[None, :] == jnp.arange(len(modes))[:, None]) & need[None], 1)
-    need_mode = need_mode & allow
-    certs = jax.vmap(
-        lambda n, c: sparse_cond(n, _certify, (world, h, c, riv, riv_ok)), in_axes=(0, 0)
-    )(need_mode, cores)
-    newest = (h.H[k], h.score[k], h.mask[k], h.X[k])
-    uniq = uniqueness.skipped() if uniq is None else uniq
-    gstat = uniqueness.skipped() if gstat is None else gstat
-
-    def lane(m, ug, up, uc, bm, dm, mg, hl, nd, uu, ut, gu, gt):
-        sym = mode_of(world.maps.sym, sym_of_mode[m])
-        # a lane reads the certificate only where it needs one itself, so what it reports
-        # does not depend on which other lanes share the evaluation
-        ct = mode_of(certs, m)
-        ct = certify.CertStats(ct.anchor, ct.valid, ct.max_adv, ct.min_adv, ct.n_windows,
-                               ct.ran & nd)  # fmt: skip
-        raw = rule.finish(mode_of(cores, m), ct, sym, p, ug, up, uc, bm, dm, mg)
-        # the path is explained by one placement and no other: commit to it, whatever the
-        # count of windows (the rule's own commit stands where the test does not hold)
-        # a lane reads one early test: the uniqueness test or the evidence grid
-        t = jax.tree.map(lambda a, b: jnp.where(gu, a, b), gstat, uniq)
-        reads = (uu | gu) & t.ran
-        holds = reads & ~t.vetoed & (t.llr >= jnp.where(gu, gt, ut))
-        early_ = holds & (raw.state != COMMIT) & ~hl.committed
-        raw = Decision(**{**raw.__dict__,
-            "state": jnp.where(early_, COMMIT, raw.state),
-            "kind": jnp.where(early_, 0, raw.kind),
-            "reason": jnp.where(early_, 0, raw.reason),
-            "anchor": jnp.where(early_, t.anchor, raw.anchor),
-            "tau": jnp.where(early_, 0.0, raw.tau),
-            "has_competitor": raw.has_competitor & ~early_,
-            # the ratio where the test ran and no veto held (-inf: vetoed), for reading
-            "llr": jnp.where(reads, jnp.where(t.vetoed, -jnp.inf, t.llr), raw.llr),
-            "test_anchor": jnp.where(reads, t.anchor, raw.test_anchor),
-        })  # fmt: skip
-        return machine.step(hl, raw, newest, p, ug)
-
-    return jax.vmap(lane)(ln.mode, ln.use_gate, ln.use_probe, ln.use_cert, ln.b_min,
-                          ln.delta_min, ln.cert_margin, held, need & allow,
-                          ln.use_unique, ln.unique_llr, ln.use_grid, ln.grid_margin)  # fmt: skip
-
-
-# jitted (and inlined when the step compiles): ``update``'s two decisions share one trace
-_decide_once = jax.jit(_decide)
-
-
-def _decide_again(ops):
-    """The decision with the rivals just found (``update``'s second decision)."""
-    world, h, cores, held, riv, riv_ok, uniq, gstat = ops
-    return _decide_once(world, h, cores, held, riv, riv_ok, jnp.bool_(True), uniq, gstat)
-
-
-def _search(ops):
-    """The rival search on the history, written into the run's next rival slots."""
-    world, h, riv, riv_ok, searches = ops
-    rp = world.rival_params
-    found, ok = rivals.search(h.ev_points, h.ev_origins, h.ev_mask, h.X, world.fields,
-                              world.n_img, rp)  # fmt: skip
-    at = searches * rp.n_rivals
-    riv = jax.lax.dynamic_update_slice(riv, found.astype(riv.dtype), (at, 0))
-    return riv, jax.lax.dynamic_update_slice(riv_ok, ok, (at,))
-
-
-def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]:
-    """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``)."""
+def update(state: LayerState, ev: WindowEvidence, batched: bool = False
+           ) -> tuple[LayerState, Decision]:  # fmt: skip
+    """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``).
+    ``batched`` (static): the program form for ``vmap`` over runs (``_decided_batched``);
+    both forms decide alike."""
     world = state.world
     p = world.params
     before = state
@@ -235,7 +137,6 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
     k = h.n - 1
     cons = h.walk.consistency()
     cores = _cores(world, h, path, cons)
-    pl = world.spec.primary
     u_tests, uniq, gstat, grid = state.u_tests, None, None, state.grid
     c0 = jax.tree.map(lambda a: a[0], cores)  # mode 0: the gate on, default symmetries
     if world.spec.unique:
@@ -245,22 +146,9 @@ def update(state: LayerState, ev: WindowEvidence) -> tuple[LayerState, Decision]
         open_lane = jnp.any(world.lanes.use_grid & ~state.held.committed)
         grid, gstat = early.grid_test(world, grid, h, path, c0, ev, open_lane)
 
-    # The decision; where the primary lane is about to enter COMMIT (and searches are left)
-    # the path is searched for rivals and the window is decided again with them. The second
-    # decision runs only in the rows that searched (``sparse_cond``): a few in a hundred.
-    held, out = _decide_once(world, h, cores, state.held, state.rivals, state.rivals_ok,
-                             jnp.bool_(True), uniq, gstat)  # fmt: skip
-    riv, riv_ok, searches = state.rivals, state.rivals_ok, state.searches
-    searched = jnp.bool_(False)
-    if pl >= 0:
-        enter = (out.state[pl] == COMMIT) & ~state.held.committed[pl]
-        searched = enter & (searches < world.rival_params.max_searches) & ev.valid
-        found = sparse_cond(searched, _search, (world, h, riv, riv_ok, searches))
-        riv, riv_ok = _where(searched, found, (riv, riv_ok))
-        searches = searches + searched.astype(jnp.int32)
-        again = sparse_cond(searched, _decide_again,
-                            (world, h, cores, state.held, riv, riv_ok, uniq, gstat))  # fmt: skip
-        held, out = _where(searched, again, (held, out))
+    ops = (world, h, cores, state.held, state.rivals, state.rivals_ok, uniq, gstat)
+    riv, riv_ok, searches, searched, held, out = (passes.decided_batched if batched
+        else passes.decided)(ops, state.searches, ev.valid)  # fmt: skip
     if world.fields is not None and ev.end_points is not None:
         # every reported commit against the window's last scan
         poses = se2.compose(out.anchor, ev.X[None].astype(out.anchor.dtype))

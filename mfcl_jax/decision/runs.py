@@ -85,7 +85,7 @@ def scan_runs(
         m = jax.tree.map(lambda a: a[b], maps)
         f = None if fields is None else jax.tree.map(lambda a: a[b], fields)
         state = layer.init(m, params, caps, lanes, spec, f, n_img, rp)
-        _, dec = jax.lax.scan(layer.update, state, ev)
+        _, dec = jax.lax.scan(partial(layer.update, batched=True), state, ev)
         return dec
 
     return jax.vmap(one)(building, evidence)

@@ -15,6 +15,7 @@ compilation cache off, so every figure is a cold compilation:
 * ``ours_no_search``: that lane without the search;
 * ``ours_unbatched``: ``ours_no_search`` for one run, ``lax.scan(update)`` without the
   ``vmap`` over runs (what batching adds).
+* ``robot``: ``ours`` for one run without the ``vmap``: the program of a robot's step.
 
 Medians of ``--repeats`` subprocesses per variant, the variants alternating. Writes
 ``results/bench_compile.csv`` and ``results/bench_compile.md`` (pasted into the
@@ -43,6 +44,7 @@ VARIANTS = {  # name: (ours lanes, baselines, rival search, vmap over runs)
     "ours": ("ours", False, True, True),
     "ours_no_search": ("ours", False, False, True),
     "ours_unbatched": ("ours", False, False, False),
+    "robot": ("ours", False, True, False),
 }
 
 
@@ -80,15 +82,15 @@ def one(name: str) -> dict:
         fn = jax.jit(decision_runs.scan_runs, static_argnames=tuple(st))
         call = (args, st)
     else:
-        maps, _, _, params, ln, ev = args
+        maps, fields, _, params, ln, ev = args
 
-        def fn(maps, params, ln, ev):
-            m = jax.tree.map(lambda a: a[0], maps)
-            state = layer.init(m, params, st["caps"], ln, st["spec"], None, 0, st["rp"])
+        def fn(maps, fields, params, ln, ev):
+            m, f = (None if t is None else jax.tree.map(lambda a: a[0], t) for t in (maps, fields))
+            state = layer.init(m, params, st["caps"], ln, st["spec"], f, st["n_img"], st["rp"])
             return jax.lax.scan(layer.update, state, ev)[1]
 
         fn = jax.jit(fn)
-        call = ((maps, params, ln, jax.tree.map(lambda a: a[0], ev)), {})
+        call = ((maps, fields, params, ln, jax.tree.map(lambda a: a[0], ev)), {})
     t0 = time.perf_counter()
     lowered = fn.lower(*call[0], **call[1])
     t1 = time.perf_counter()

@@ -113,7 +113,8 @@ def _cores(world: World, h: History, path: Path, cons):
 def update(state: LayerState, ev: WindowEvidence, batched: bool = False
            ) -> tuple[LayerState, Decision]:  # fmt: skip
     """One window: the new state and every lane's ``Decision`` (leaves ``(L, ...)``).
-    ``batched`` (static): the program form for ``vmap`` over runs (``_decided_batched``);
+    ``batched`` (static): the program form for ``vmap`` over runs
+    (``passes.decided_batched``; ``passes.decided`` otherwise);
     both forms decide alike."""
     world = state.world
     p = world.params

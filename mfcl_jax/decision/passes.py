@@ -29,10 +29,10 @@ def _certify(ops):
                              world.params, riv, riv_ok, world.caps.cert_slots)  # fmt: skip
 
 
-def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq=None,
+def _decide(world: World, h: History, cores, held, riv, riv_ok, uniq=None,
             gstat=None):  # fmt: skip
     """Every lane's decision at the newest window, given the rivals: certification where
-    needed (and ``allow``ed), the rule, the early tests' commit where a lane reads one
+    needed, the rule, the early tests' commit where a lane reads one
     (``early``: uniqueness, evidence grid), the commit machine. Returns ``(held,
     reported)``."""
     k = h.n - 1
@@ -47,7 +47,6 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
         lambda m, ug, uc, bm, hl: rule.needs_certificate(mode_of(cores, m), p, ug, uc, bm, hl)
     )(ln.mode, ln.use_gate, ln.use_cert, ln.b_min, held)
     need_mode = jnp.any((ln.mode[None, :] == jnp.arange(len(modes))[:, None]) & need[None], 1)
-    need_mode = need_mode & allow
     certs = jax.vmap(
         lambda n, c: sparse_cond(n, _certify, (world, h, c, riv, riv_ok)), in_axes=(0, 0)
     )(need_mode, cores)
@@ -84,14 +83,14 @@ def _decide(world: World, h: History, cores, held, riv, riv_ok, allow=True, uniq
         return machine.step(hl, raw, newest, p, ug)
 
     return jax.vmap(lane)(ln.mode, ln.use_gate, ln.use_probe, ln.use_cert, ln.b_min,
-                          ln.delta_min, ln.cert_margin, held, need & allow,
+                          ln.delta_min, ln.cert_margin, held, need,
                           ln.use_unique, ln.unique_llr, ln.use_grid, ln.grid_margin)  # fmt: skip
 
 
 def _decide_pass(ops):
     """``_decide`` of one pass of ``update`` (its operands as one pytree: ``sparse_cond``)."""
     world, h, cores, held, riv, riv_ok, uniq, gstat = ops
-    return _decide(world, h, cores, held, riv, riv_ok, jnp.bool_(True), uniq, gstat)
+    return _decide(world, h, cores, held, riv, riv_ok, uniq, gstat)
 
 
 def _search(ops):
@@ -103,6 +102,18 @@ def _search(ops):
     at = searches * rp.n_rivals
     riv = jax.lax.dynamic_update_slice(riv, found.astype(riv.dtype), (at, 0))
     return riv, jax.lax.dynamic_update_slice(riv_ok, ok, (at,))
+
+
+def _search_at_commit(ops, out, riv, riv_ok, searches, go):
+    """The rival search where ``go`` and the primary lane is about to enter COMMIT (searches
+    left): ``(rivals, rivals_ok, searches, searched)``."""
+    world, h, _, held0 = ops[:4]
+    pl = world.spec.primary
+    enter = (out.state[pl] == COMMIT) & ~held0.committed[pl]
+    do = go & enter & (searches < world.rival_params.max_searches)
+    found = sparse_cond(do, _search, (world, h, riv, riv_ok, searches))
+    riv, riv_ok = where_tree(do, found, (riv, riv_ok))
+    return riv, riv_ok, searches + do.astype(jnp.int32), do
 
 
 def decided(ops, searches, valid):
@@ -120,11 +131,9 @@ def decided(ops, searches, valid):
                                                   gstat), dense=True)  # fmt: skip
         held, out = where_tree(allow, again, (held, out))
         if pl >= 0:
-            enter = (out.state[pl] == COMMIT) & ~held0.committed[pl]
-            do = (i == 0) & enter & (searches < world.rival_params.max_searches) & valid
-            found = sparse_cond(do, _search, (world, h, riv, riv_ok, searches))
-            riv, riv_ok = where_tree(do, found, (riv, riv_ok))
-            searches, searched = searches + do.astype(jnp.int32), searched | do
+            riv, riv_ok, searches, do = _search_at_commit(ops, out, riv, riv_ok, searches,
+                                                          (i == 0) & valid)  # fmt: skip
+            searched = searched | do
         return riv, riv_ok, searches, searched, held, out
 
     shape = jax.eval_shape(_decide_pass, ops)[1]
@@ -142,11 +151,7 @@ def decided_batched(ops, searches, valid):
     held, out = _decide_pass(ops)
     searched = jnp.bool_(False)
     if pl >= 0:
-        enter = (out.state[pl] == COMMIT) & ~held0.committed[pl]
-        searched = enter & (searches < world.rival_params.max_searches) & valid
-        found = sparse_cond(searched, _search, (world, h, riv, riv_ok, searches))
-        riv, riv_ok = where_tree(searched, found, (riv, riv_ok))
-        searches = searches + searched.astype(jnp.int32)
+        riv, riv_ok, searches, searched = _search_at_commit(ops, out, riv, riv_ok, searches, valid)
         again = sparse_cond(searched, _decide_pass, (world, h, cores, held0, riv, riv_ok, uniq,
                                                      gstat))  # fmt: skip
         held, out = where_tree(searched, again, (held, out))

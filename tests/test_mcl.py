@@ -108,6 +108,24 @@ def test_batch_over_runs_and_seeds_equals_one_at_a_time(t1, s1):
         np.testing.assert_allclose(a, c, rtol=1e-3, atol=1e-3, err_msg=name)
 
 
+def test_a_run_filtered_in_calls_of_a_few_steps_equals_one_call(t1, monkeypatch):
+    # the cloud is carried from call to call: cutting the steps changes nothing, and a longer
+    # recording reuses the compilation of the shorter one (one program for any length)
+    from mfcl_jax.peers import mcl
+
+    kf, we = _short(t1, 24, 6)
+    batch = prepare_mcl_inputs([t1], [we], [kf], max_points=60)
+    whole = run_mcl(batch, SMALL, (0,))
+    monkeypatch.setattr(mcl, "STEPS", 8)
+    cut = run_mcl(batch, SMALL, (0,))  # steps in three calls
+    for name in ("pose", "anchor", "std_xy", "std_yaw", "ess", "fit"):
+        np.testing.assert_array_equal(getattr(cut, name), getattr(whole, name), err_msg=name)
+    n0 = trace_count()
+    kf2, we2 = _short(t1, 40, 8)
+    longer = run_mcl(prepare_mcl_inputs([t1], [we2], [kf2], max_points=60), SMALL, (0,))
+    assert trace_count() == n0 and longer.pose.shape[2] >= 5
+
+
 def test_thinning_scans_to_n_beams_keeps_the_filter_s_own_pick(t1):
     kf, we = _short(t1, 24, 6)
     full = prepare_mcl_inputs([t1], [we], [kf])

@@ -5,8 +5,9 @@ uniform in yaw, and at every keyframe applies the odometry motion model, the map
 through a wall is penalised), the likelihood-field scan model (tempered) and, when the
 effective sample size drops below ``resample_ess * N`` or the recovery rule injects uniform
 particles (augmented MCL), low-variance resampling (``mcl_model``). The whole time loop is one
-``lax.scan``; runs are ``lax.map``ped in chunks and seeds are ``vmap``ped; one compilation per
-(static parameters, batch shapes).
+``lax.scan`` per call of ``STEPS`` keyframes, the cloud carried from call to call; runs are
+``vmap``ped in chunks of ``MCLParams.chunk``, seeds too; one compilation per (static
+parameters, chunk shapes), whatever the recordings' length.
 
 The filter never decides: per window end it records the weighted mean pose, the cloud's spread
 and the anchor ``^B T_L = P X^-1`` (``MCLTrace``). ``commits`` applies any threshold afterwards
@@ -61,20 +62,29 @@ class MCLTrace:
     window_mask: np.ndarray
 
 
-def _filter(key, run, tp, n, n_beams, recovery, res):
-    """One run, one seed: per-step statistics, a dict of ``(T, ...)`` arrays."""
-    shape = run["dist"].shape
+def _maps(run, tp):
+    """The run's likelihood table and free-cell count (recomputed per call: cheap)."""
     table = mm.likelihood_table(
         run["dist"], tp["sigma_hit"], tp["z_hit"], tp["z_rand"], tp["max_range"], tp["max_dist"]
     )
-    cdf = mm.free_cdf(run["free"])
-    origin = run["origin"]
+    return table, mm.free_cdf(run["free"])
+
+
+def _start(key, run, tp, n, res):
+    """One run, one seed: the uniform initial cloud, as the filter's carry."""
+    _, cdf = _maps(run, tp)
     k_init, key = jax.random.split(key)
-    particles = mm.sample_free(k_init, cdf, shape, origin, res, n)
+    particles = mm.sample_free(k_init, cdf, run["dist"].shape, run["origin"], res, n)
     logw = jnp.full((n,), -math.log(n), jnp.float32)
-    odom = run["odom"]
-    prev = jnp.concatenate([odom[:1], odom[:-1]])  # step 0 does not move
     zero = jnp.float32(0.0)
+    return (particles, logw, zero, zero, key)
+
+
+def _filter(carry, run, xs, tp, n, n_beams, recovery, res):
+    """One run, one seed, one chunk of steps: ``(carry, dict of (Tc, ...) per-step stats)``."""
+    shape = run["dist"].shape
+    table, cdf = _maps(run, tp)
+    origin = run["origin"]
 
     def step(carry, x):
         particles, logw, slow0, fast0, key = carry
@@ -129,66 +139,116 @@ def _filter(key, run, tp, n, n_beams, recovery, res):
         )
         return carry, dict(mean=mean, std_xy=std_xy, std_yaw=std_yaw, ess=ess, fit=fit)
 
-    first = jnp.arange(odom.shape[0]) == 0
-    xs = (run["scans"], run["mask"], prev, odom, run["step_mask"], first)
-    init = (particles, logw, zero, zero, key)
-    _, out = jax.lax.scan(step, init, xs)
-    return out
+    return jax.lax.scan(step, carry, xs)
 
 
-def _mcl(batch: MCLBatch, keys, tp, n, n_beams, recovery, chunk):
+_GRIDS = ("dist", "free", "passable", "origin")
+
+
+def _mcl_start(grids, keys, tp, n, res):
+    """Initial carries ``(R, S, ...)`` of the runs ``grids`` (dict of ``_GRIDS``)."""
+    return jax.vmap(lambda run, k: jax.vmap(lambda kk: _start(kk, run, tp, n, res))(k))(grids, keys)
+
+
+def _mcl_steps(grids, xs, carry, tp, n, n_beams, recovery, res):
+    """One chunk of steps of every run and seed: ``(carry, per-step stats (R, S, Tc, ...))``."""
     global _TRACES
     _TRACES += 1
-    res = batch.res
 
-    def per_run(args):
-        run, run_keys = args
-        out = jax.vmap(lambda k: _filter(k, run, tp, n, n_beams, recovery, res))(run_keys)
-        out = {k: v[:, run["window_end"]] for k, v in out.items()}  # (S, K, ...)
-        pose = out.pop("mean")
-        return dict(pose=pose, anchor=se2.anchor(pose, run["odom"][run["window_end"]]), **out)
+    def per_run(run, x, c):
+        return jax.vmap(lambda cc: _filter(cc, run, x, tp, n, n_beams, recovery, res))(c)
 
-    runs = dict(
-        scans=batch.scans,
-        mask=batch.mask,
-        odom=batch.odom,
-        step_mask=batch.step_mask,
-        window_end=batch.window_end,
-        dist=batch.dist,
-        free=batch.free,
-        passable=batch.passable,
-        origin=batch.origin,
-    )
-    # A divisor of R: lax.map compiles the body a second time for a remainder batch.
-    n_runs = keys.shape[0]
-    size = max(d for d in range(1, min(chunk, n_runs) + 1) if n_runs % d == 0)
-    return jax.lax.map(per_run, (runs, keys), batch_size=size)
+    return jax.vmap(per_run)(grids, xs, carry)
 
 
-_mcl_jit = jax.jit(_mcl, static_argnames=("n", "n_beams", "recovery", "chunk"))
+_start_jit = jax.jit(_mcl_start, static_argnames=("n", "res"))
+_steps_jit = jax.jit(_mcl_steps, static_argnames=("n", "n_beams", "recovery", "res"))
+STEPS = 128  # keyframes per call: one compilation serves every length
+
+
+def _runs(n_runs: int, chunk: int) -> int:
+    """Runs per call: the largest divisor of ``n_runs`` not above ``chunk``."""
+    return max(d for d in range(1, min(chunk, n_runs) + 1) if n_runs % d == 0)
+
+
+def _inputs(batch: MCLBatch, steps: int) -> tuple:
+    """The per-step inputs ``(R, T', ...)``, ``T'`` a multiple of ``steps`` (padding inert)."""
+    R, T = batch.step_mask.shape
+    T2 = -(-T // steps) * steps
+    odom = np.asarray(batch.odom, np.float32)
+    prev = np.concatenate([odom[:, :1], odom[:, :-1]], 1)  # step 0 does not move
+    first = np.broadcast_to(np.arange(T) == 0, (R, T))
+    xs = (batch.scans, batch.mask, prev, odom, batch.step_mask, first)
+
+    def pad(a):  # inert steps: the last pose again, no points, not valid
+        a = np.asarray(a)
+        widths = [(0, 0), (0, T2 - T)] + [(0, 0)] * (a.ndim - 2)
+        return np.pad(a, widths, mode="constant" if a.dtype == bool else "edge")
+
+    return tuple(pad(a) for a in xs)
 
 
 def make_mcl(params: MCLParams):
-    """The jitted filter for ``params``: ``f(batch, seeds) -> MCLTrace``.
+    """The filter for ``params``: ``f(batch, seeds) -> MCLTrace``.
 
-    Every ``make_mcl`` shares one compilation cache: parameters other than the static ones
-    (see ``MCLParams``) are passed as arrays, so changing them does not recompile.
+    The steps run in calls of ``STEPS`` keyframes (the cloud carried from call to call) and
+    ``chunk`` runs (``MCLParams.chunk``), so one compilation serves any recording length and
+    any number of runs. Every ``make_mcl`` shares one compilation cache: parameters other than
+    the static ones (see ``MCLParams``) are passed as arrays, so changing them does not
+    recompile.
     """
     static = params.static()
+    n, chunk = static.pop("n"), static.pop("chunk")
     tp = params.traced()
 
     def run(batch: MCLBatch, seeds) -> MCLTrace:
         keys = _seed_keys(batch, seeds)
-        out = _mcl_jit(batch, keys, tp, **static)
-        out = jax.tree.map(np.asarray, jax.block_until_ready(out))
-        return MCLTrace(window_mask=np.asarray(batch.window_mask), **out)
+        R, T = batch.step_mask.shape
+        xs = _inputs(batch, STEPS)
+        size = _runs(R, chunk)
+        parts = []
+        for r0 in range(0, R, size):
+            rows = slice(r0, r0 + size)
+            grids = {g: np.asarray(getattr(batch, g))[rows] for g in _GRIDS}
+            carry = _start_jit(grids, keys[rows], tp, n=n, res=batch.res)
+            stats = []
+            for t0 in range(0, xs[0].shape[1], STEPS):
+                x = tuple(a[rows, t0 : t0 + STEPS] for a in xs)
+                carry, out = _steps_jit(grids, x, carry, tp, n=n, res=batch.res, **static)
+                stats.append(jax.tree.map(np.asarray, out))
+            parts.append({k: np.concatenate([s[k] for s in stats], 2)[:, :, :T] for k in stats[0]})
+        steps = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}  # (R, S, T, ...)
+        return _trace(batch, steps)
 
     def lower(batch: MCLBatch, seeds):
-        """Ahead-of-time lowering for these shapes (``.compile()`` it to time compilation)."""
-        return _mcl_jit.lower(batch, _seed_keys(batch, seeds), tp, **static)
+        """Ahead-of-time lowering of one chunk of steps for these shapes (``.compile()`` it to
+        time compilation)."""
+        keys = _seed_keys(batch, seeds)
+        size = _runs(batch.n_runs, chunk)
+        xs = tuple(a[:size, :STEPS] for a in _inputs(batch, STEPS))
+        grids = {g: np.asarray(getattr(batch, g))[:size] for g in _GRIDS}
+        carry = jax.eval_shape(lambda: _start_jit(grids, keys[:size], tp, n=n, res=batch.res))
+        return _steps_jit.lower(grids, xs, carry, tp, n=n, res=batch.res, **static)
 
     run.lower = lower
     return run
+
+
+@jax.jit
+def _anchors(pose, odom):
+    return se2.anchor(pose, odom)
+
+
+def _trace(batch: MCLBatch, steps: dict) -> MCLTrace:
+    """The per-step stats read at each run's window ends."""
+    we = np.asarray(batch.window_end)  # (R, K)
+    rows = np.arange(we.shape[0])[:, None]
+    at = {k: np.swapaxes(v, 1, 2)[rows, we] for k, v in steps.items()}  # (R, K, S, ...)
+    at = {k: np.swapaxes(v, 1, 2) for k, v in at.items()}  # (R, S, K, ...)
+    pose = at.pop("mean")
+    odom = np.asarray(batch.odom, np.float32)[rows, we][:, None]  # (R, 1, K, 3)
+    anchor = np.asarray(_anchors(pose, np.broadcast_to(odom, pose.shape)))
+    return MCLTrace(pose=pose, anchor=anchor, window_mask=np.asarray(batch.window_mask), **at)
 
 
 def _seed_keys(batch: MCLBatch, seeds) -> jax.Array:

@@ -45,8 +45,8 @@ class MCLParams:
             below the long one, that fraction of particles restarts uniformly at resampling.
             ``recovery_alpha_fast = 0`` disables it (AMCL's default) and removes it from the
             program (so switching it on or off recompiles; other values do not).
-        chunk: at most this many runs processed together by ``lax.map`` (the largest divisor
-            of the run count not above it; bounds memory; results do not depend on it).
+        chunk: at most this many runs filtered together in one call (the largest divisor of
+            the run count not above it; bounds memory; results do not depend on it).
     """
 
     n_particles: int = 8192

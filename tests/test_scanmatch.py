@@ -70,12 +70,13 @@ def test_refined_odometry_starts_at_the_input_and_is_causal():
 
 
 def test_cutting_many_recordings_at_once_equals_cutting_each():
-    """The benchmark cuts a group's recordings in one batched LiDAR odometry (``cut_many``,
-    padded to ``rows``): every window must be what cutting that recording alone gives."""
+    """``cut_many`` cuts recordings in one batched LiDAR odometry (padded to ``rows``) or in
+    turn: every window must be what cutting that recording alone gives."""
     recs = [_drifting(seed=s) for s in (1, 2)]
     wp = W.WindowParams(d_s=6.0)
-    many = W.cut_many(((r.seq, wp) for r in recs), rows=4)
-    for r, w in zip(recs, many, strict=True):
+    batched = W.cut_many(((r.seq, wp) for r in recs), rows=4, together=True)
+    in_turn = W.cut_many(((r.seq, wp) for r in recs), together=False)
+    for r, w in zip(recs * 2, batched + in_turn, strict=True):
         one = W.cut(r.seq, wp)
         np.testing.assert_array_equal(w.odometry, one.odometry)
         np.testing.assert_array_equal(w.keyframes, one.keyframes)

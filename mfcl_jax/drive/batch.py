@@ -5,11 +5,11 @@ raster side in steps of 256 cells and the rival search's image), so that a plan 
 the largest plan of its class, never to the largest of the call; the smallest class runs
 first. Within a class the recordings are decided in chunks of one size (the last padded to
 it: one compilation per class and chunk size): a chunk's windows are cut together
-(``windows.cut_many``: one batched LiDAR odometry), registered by the class's ``FrontEnd``
-(the plan features of the chunk's plans, dropped after it) and decided by the one decision
-layer (``decision.runs``: ``vmap`` over runs of ``lax.scan(layer.update)``, the ``update`` a
-robot calls). The capacities are sized once, from every recording's input odometry, before
-any work. Results are handed out chunk by chunk, as they are decided.
+(``windows.cut_many``: one LiDAR odometry per recording), registered by the class's
+``FrontEnd`` (the plan features of the chunk's plans, dropped after it) and decided by the
+one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan(layer.update)``, the
+``update`` a robot calls). The capacities are sized once, from every recording's input
+odometry, before any work. Results are handed out chunk by chunk, as they are decided.
 
 Memory: the resident peak of every chunk is measured (``memory.PeakSampler``) and held
 against the budget; a chunk that passes it halves the chunk size of what follows (one more

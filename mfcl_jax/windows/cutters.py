@@ -1,6 +1,6 @@
-"""Cutting beyond one sequence at a time: many sequences with one batched LiDAR odometry
-(``cut_many``), and a recording that grows, window by window as each completes (``Cutter``).
-Both give exactly ``submaps.cut``'s windows."""
+"""Cutting beyond one sequence at a time: many sequences, each one's LiDAR odometry refined
+once (``cut_many``; batched on an accelerator), and a recording that grows, window by window
+as each completes (``Cutter``). Both give ``submaps.cut``'s windows."""
 
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ __all__ = ["cut_many", "Cutter"]
 
 def cut_many(items, rows: int = 1, together: bool | None = None) -> list[Windows]:
     """``cut(seq, params)`` of every ``(seq, params)`` pair, the LiDAR odometry of each
-    distinct sequence refined once (shared by its ``d_s`` values). Equal to cutting one by one.
+    distinct sequence refined once (shared by its ``d_s`` values). In turn, equal to cutting
+    one by one; together, to float32 rounding (a pose within about 1e-9 m).
 
     ``together``: all sequences in one batched kernel (``odometry.extend_many``; ``rows``: its
     least batch, so that calls with fewer sequences share its compilation), or each sequence

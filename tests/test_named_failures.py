@@ -108,7 +108,20 @@ def _stop_inside_gc():
     gc.collect()
 
 
-def test_a_stop_dropped_by_python_still_stops_the_run(capfd):
+@pytest.fixture
+def terminal_sigint():
+    """SIGINT handled as in a terminal, even where the suite was started with it ignored (a
+    background job of a script: the stop layer rightly leaves an ignored signal alone)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def _terminal_sigint():  # the same for a child process (``preexec_fn``)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def test_a_stop_dropped_by_python_still_stops_the_run(capfd, terminal_sigint):
     from mfcl_jax.robot.progress import Progress
 
     reached = []
@@ -161,7 +174,8 @@ def test_a_signal_during_shutdown_exits_with_its_status_and_no_traceback():
         "exit_on_signal()\n"
         "print('outputs written', flush=True)\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                       preexec_fn=_terminal_sigint)  # fmt: skip
     assert r.returncode == 130 and "outputs written" in r.stdout
     assert "Traceback" not in r.stderr, r.stderr
 

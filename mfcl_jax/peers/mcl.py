@@ -192,10 +192,11 @@ def make_mcl(params: MCLParams):
     """The filter for ``params``: ``f(batch, seeds) -> MCLTrace``.
 
     The steps run in calls of ``STEPS`` keyframes (the cloud carried from call to call) and
-    ``chunk`` runs (``MCLParams.chunk``), so one compilation serves any recording length and
-    any number of runs. Every ``make_mcl`` shares one compilation cache: parameters other than
-    the static ones (see ``MCLParams``) are passed as arrays, so changing them does not
-    recompile.
+    ``chunk`` runs (``MCLParams.chunk``), so one compilation serves any recording length (and
+    every run count with the same runs per call: the largest divisor not above ``chunk``;
+    ``pad_batch`` makes it ``chunk``). Every ``make_mcl`` shares one compilation cache:
+    parameters other than the static ones (see ``MCLParams``) are passed as arrays, so
+    changing them does not recompile.
     """
     static = params.static()
     n, chunk = static.pop("n"), static.pop("chunk")

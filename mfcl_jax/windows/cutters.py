@@ -27,8 +27,8 @@ def cut_many(items, rows: int = 1, together: bool | None = None) -> list[Windows
     ``together``: all sequences in one batched kernel (``odometry.extend_many``; ``rows``: its
     least batch, so that calls with fewer sequences share its compilation), or each sequence
     in turn (one compilation for all). Default: together on an accelerator, in turn on a CPU,
-    where the batched kernel is slower (12 benchmark recordings: 16.5 s against 12.6 s; the
-    batch runs as long as its longest sequence, and its matching tables outgrow the cache).
+    where the batched kernel was measured slower (12 benchmark recordings: 16.5 s against
+    12.6 s; among other things, the batch runs as long as its longest sequence).
     """
     items = list(items)
     if together is None:

@@ -210,7 +210,8 @@ def make_mcl(params: MCLParams):
         parts = []
         for r0 in range(0, R, size):
             rows = slice(r0, r0 + size)
-            grids = {g: np.asarray(getattr(batch, g))[rows] for g in _GRIDS}
+            # on the device once per chunk of runs, not once per call of steps
+            grids = jax.device_put({g: np.asarray(getattr(batch, g))[rows] for g in _GRIDS})
             carry = _start_jit(grids, keys[rows], tp, n=n, res=batch.res)
             stats = []
             for t0 in range(0, xs[0].shape[1], STEPS):

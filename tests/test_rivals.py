@@ -192,6 +192,26 @@ def test_a_block_of_a_window_contradicts_a_competitor_at_equal_confidence():
     assert float(st_f.max_adv[0]) < p.cert_margin <= float(st.max_adv[0])
 
 
+def test_the_probes_shifted_aliases_are_held_to_the_turned_rule_and_no_other_shift_is():
+    """``certify.self_images``: a competitor is held to the turned rule (free-space term, or
+    two blocks of a window) where it is an image of ``T*`` under a self-motion of the
+    building: turned by a quarter-turn multiple, whoever found it, or one of the probe's
+    period-shifted aliases; the same shift found as another group or a window's runner-up
+    keeps the single-block rule (a shifted copy that differs at one doorway)."""
+    from mfcl_jax.decision import certify
+
+    t = jnp.asarray(A, jnp.float32)
+    shifted = se2.compose(np.array([PITCH, 0.0, 0.0]), A)
+    half = se2.compose(np.array([28.0, 5.0, np.pi]), A)
+    quarter = se2.compose(np.array([3.0, -2.0, np.pi / 2]), A)
+    odd = se2.compose(np.array([1.0, 4.0, np.deg2rad(40.0)]), A)
+    comp = jnp.asarray(np.stack([shifted, half, odd, shifted, half, quarter, odd]), jnp.float32)
+    # the first three are the probe's aliases, the rest groups, runner-ups or rivals
+    got = np.asarray(certify.self_images(t, comp, 3))
+    np.testing.assert_array_equal(got, [True, True, False, False, True, True, False])
+    assert not np.asarray(certify.self_images(t, comp, 0))[0]
+
+
 def test_robot_and_batch_search_at_the_same_windows_and_agree():
     """A robot (``Localizer``: one jitted register-and-update per window) and the batch path
     (``decision.runs``: every run scanned at once) search for rivals at the same windows

@@ -44,10 +44,12 @@ so placed, since the room-based ``symmetry`` misses the half turn of a building 
 rectangles) is ruled out by the free-space term (the window's or a block's, at the usual
 scales), or by the whole score only where two blocks of one window contradict it: one local
 feature does not rule a turned placement out, walls that differ around the robot do.
-What this costs and what the alternatives did is measured in ``docs/benchmark.md``.
-Translated competitors keep every block: offices whose
-walls differ from a shifted copy at one doorway are told apart by one block, and a period
-shift is the translational probe's case.
+The probe's period-shifted aliases are images of ``T*`` under a self-motion too (a row of
+bays shifted by its pitch: the same trap along a translation, a stub seen one bay over) and
+are held to the same rule (``self_images``). Other translated competitors (another group, a
+window's runner-up, a rival of the path) keep every block: offices whose walls differ from a
+shifted copy at one doorway are told apart by one block. What this costs and what the
+alternatives did is measured in ``docs/benchmark.md``.
 
 Sub-window evidence (``CERT_BLOCKS``). A competitor that differs from ``T*`` along part of a
 window only (one doorway, the far wall of one office, a bay's end) is diluted in the window's
@@ -79,6 +81,7 @@ __all__ = [
     "competitors",
     "certify",
     "relation",
+    "self_images",
     "CERT_BLOCKS",
     "CORRECT",
     "MARGIN_POINTS",
@@ -246,6 +249,18 @@ def certify(k, t_star, comp, comp_ok, X, evidence, bounds, maps, p, n_slots: int
     # without evidence nothing is ruled out: every distinct competitor stays live
     valid = comp_ok & distinct
     return CertStats(comp, valid, max_adv, min_adv, n_win.astype(jnp.int32), jnp.bool_(True))
+
+
+def self_images(t_star, comp, n_aliases: int):
+    """``(C,)`` bool: the competitors ``comp (C, 3)`` that are images of ``T*`` under a
+    self-motion of the building, told apart from it only where the plan breaks the symmetry:
+    those turned from ``T*`` by a quarter-turn multiple (``relation`` kind rotation, whatever
+    found them) and the probe's period-shifted aliases (the first ``n_aliases`` rows, kind
+    translation). ``certify`` rules them out by the free-space term or by two blocks of a
+    window only (``turned``; module docstring)."""
+    kind = jax.vmap(lambda a: relation(t_star, a)[0])(comp)
+    alias = jnp.arange(comp.shape[0]) < n_aliases
+    return (kind == 3) | (alias & (kind == 1))
 
 
 def relation(t_star, c):

@@ -111,9 +111,9 @@ def certify_core(k, c: Core, H, score, X, evidence, bounds, maps, p, rivals, riv
         g.t_star, pr.aliases, pr.aliases_ok, g.anchor, others, H, score, c.admitted, X[k],
         rivals, rivals_ok,
     )  # fmt: skip
-    # a placement turned by a quarter-turn multiple from T* is ruled out by the free-space
-    # term or by two blocks of a window (``certify`` module docstring)
-    turned = jax.vmap(lambda a: certify.relation(g.t_star, a)[0] == lattice.ROTATION)(comp)
+    # an image of T* under a self-motion of the building is ruled out by the free-space term
+    # or by two blocks of a window (``certify`` module docstring)
+    turned = certify.self_images(g.t_star, comp, pr.aliases.shape[0])
     return certify.certify(k, g.t_star, comp, ok, X, evidence, bounds, maps, p, n_slots,
                            turned)  # fmt: skip
 

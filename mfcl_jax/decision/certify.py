@@ -73,6 +73,7 @@ import jax
 import jax.numpy as jnp
 
 from mfcl_jax import se2
+from mfcl_jax.decision import lattice
 from mfcl_jax.decision.fitted import FREE_PER_RAY, window_scores
 
 __all__ = [
@@ -260,7 +261,7 @@ def self_images(t_star, comp, n_aliases: int):
     window only (``turned``; module docstring)."""
     kind = jax.vmap(lambda a: relation(t_star, a)[0])(comp)
     alias = jnp.arange(comp.shape[0]) < n_aliases
-    return (kind == 3) | (alias & (kind == 1))
+    return (kind == lattice.ROTATION) | (alias & (kind == lattice.TRANSLATION))
 
 
 def relation(t_star, c):

@@ -9,7 +9,8 @@ only its own scans; the question "who leads, and by how much over everything out
 leader's neighbourhood?" is then a max over the array.
 
 Shapes (``Y`` = 72 headings, ``Hg x Wg`` the plan's grid at ``g_res`` = 0.3 m, ``n`` = 128
-the window image side, ``fh x fw`` the FFT size ``>= (Hg + n) x (Wg + n)``):
+the window image side, ``fh x fw`` the FFT size ``>= (Hg + n/2) x (Wg + n/2)``,
+``path_search.corr_size``):
 
 * state per run: ``value (Y, Hg, Wg)`` float32, ``offset (Y, 2)``, a few scalars:
   ``4 Y Hg Wg`` bytes: a 51 m square plan (171 x 171 cells) 8.4 MB, a 20,000 m^2 plan
@@ -17,8 +18,8 @@ the window image side, ``fh x fw`` the FFT size ``>= (Hg + n) x (Wg + n)``):
 * per window: per heading one weighted splat of the window's evidence (``P`` returns, ``4 P``
   free samples), two real FFTs of ``fh x fw`` forward and one back (the plan's two spectra
   are taken once per window, not per heading), a shift (gather) and a 3 x 3 max where the
-  drift budget asks for it: about ``Y * 3 * 2.5 fh fw log2(fh fw)`` flops, 1.6 GFLOP on the
-  51 m plan (fh = fw = 300).
+  drift budget asks for it: about ``Y * 3 * 2.5 fh fw log2(fh fw)`` flops, 1.0 GFLOP on the
+  51 m plan (fh = fw = 240).
 
 The model is the path log-likelihood's (``frontend.path_llr``: a return's likelihood field
 with a clutter floor, free samples against the plan's occupancy, one observation per metre
@@ -51,7 +52,7 @@ import jax.numpy as jnp
 
 from mfcl_jax import se2
 from mfcl_jax.frontend.path_fields import PlanFields
-from mfcl_jax.frontend.path_search import fft_size
+from mfcl_jax.frontend.path_search import corr_size
 
 __all__ = ["GridParams", "DEFAULT_GRID", "Grid", "Lead", "empty", "add_window", "lead"]
 
@@ -204,7 +205,7 @@ def add_window(g: Grid, fields: PlanFields, X, dist, ev_points, ev_origins, ev_m
     count = lambda m: jnp.maximum(jnp.sum(m), 1).astype(jnp.float32)  # noqa: E731
     wp = jnp.where(ev_mask, metres / count(ev_mask), 0.0)
     wf = jnp.where(fok, metres / count(fok), 0.0)
-    fh, fw = fft_size(hc + n), fft_size(wc + n)
+    fh, fw = corr_size(hc, n), corr_size(wc, n)
     F_hit = jnp.fft.rfft2(fields.g_hit, (fh, fw))
     F_free = jnp.fft.rfft2(fields.g_free, (fh, fw))
     c = n // 2

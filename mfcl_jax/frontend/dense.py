@@ -48,8 +48,9 @@ class DenseFields:
 
     Attributes:
         fields: ``path_search.PlanFields`` (fine fields for polishing, coarse for the FFT).
-        f_hit, f_bad: ``(Hc + n, Wc // 2 + n // 2 + 1)`` complex spectra of the coarse fields
-            at the correlation size (``n`` = ``dense_img``).
+        f_hit, f_bad: ``(fh, fw // 2 + 1)`` complex spectra of the coarse fields at the
+            correlation size (``fh, fw = path_search.corr_size`` of the field's sides and
+            ``n`` = ``dense_img``).
         dirs: ``(D,)`` dominant wall directions of the plan (rad, modulo pi); dir_ok: ``(D,)``.
     """
 
@@ -100,7 +101,7 @@ def dense_fields(rasters, a1, a2, valid, p) -> DenseFields:
     sp = ps.SearchParams(coarse_res=p.dense_res)
     f = ps.plan_fields(rasters, sp)
     hc, wc = f.c_hit.shape
-    size = (hc + p.dense_img, wc + p.dense_img)
+    size = (ps.corr_size(hc, p.dense_img), ps.corr_size(wc, p.dense_img))
     dirs, ok = plan_directions(a1, a2, valid, p.dense_plan_dirs)
     return DenseFields(
         fields=jax.tree.map(jnp.asarray, f),
@@ -162,7 +163,7 @@ def _coarse(pts, pok, frees, fok, dense: DenseFields, yaws, yok, p):
     res, n = f.c_res, p.dense_img
     half = n * res / 2
     plan_shape = f.c_hit.shape
-    size = (plan_shape[0] + n, plan_shape[1] + n)
+    size = (ps.corr_size(plan_shape[0], n), ps.corr_size(plan_shape[1], n))  # dense_fields'
     npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
     nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
     k = p.dense_peaks_per_yaw

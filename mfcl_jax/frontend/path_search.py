@@ -88,8 +88,9 @@ def map_peaks(sc, th, plan_shape, n_img: int, res: float, origin, k: int):
     """The ``k`` best local maxima (5 x 5 cells) of one heading's correlation map.
 
     Args:
-        sc: ``(Hc + n_img, Wc + n_img)`` score per shift, stored modulo the map size (shift
-            ``s`` of the centred cloud image against the plan grid, ``s = -(n-1) .. Hc-1``).
+        sc: ``(fh, fw)`` score per shift (``corr_size``), stored modulo the map size (shift
+            ``s`` of the centred cloud image against the plan grid; those with ``s >= Hc``
+            read as ``s - fh``).
         th: the heading; plan_shape: ``(Hc, Wc)`` coarse plan grid; n_img: cloud image side;
         res: coarse cell (m); origin: ``(2,)`` plan grid corner; k: peaks kept (static).
 
@@ -130,13 +131,28 @@ def fft_size(n: int) -> int:
     return best
 
 
+def corr_size(side: int, n_img: int) -> int:
+    """The FFT length, along one axis, of the correlation of an ``n_img`` image (its centre
+    at ``c = n_img // 2``) with a plan field of ``side`` cells that is zero outside them, for
+    the shifts ``s`` that put the image's centre on the plan (``s = -c .. side - c - 1``).
+
+    The circular correlation of length ``L`` reads the field at ``u + s (mod L)`` for image
+    cells ``u = 0 .. n_img - 1``: from ``-c`` to ``side + n_img - c - 2``. It equals the
+    linear one where the indices past either end land in the zero padding ``side .. L - 1``:
+    ``L >= side + c`` (the negative ones wrap to ``L - c ..``) and ``L >= side + n_img - c - 1``
+    (the positive ones), so ``L >= side + n_img // 2`` (rounded up by ``fft_size``), not
+    ``side + n_img``: about half the padding. Shifts stored at ``side - c .. side - 1`` put the
+    centre off the plan and are masked (``map_peaks``)."""
+    return fft_size(int(side) + int(n_img) // 2)
+
+
 def _coarse(pts, pok, frees, fok, fields, p: SearchParams, n_img: int):
     """Best ``peaks_per_yaw`` coarse placements per heading: ``(Y * P, 3)`` and scores."""
     res = fields.c_res
     half = n_img * res / 2
     hc, wc = fields.c_hit.shape
-    # Correlation sizes padded to fast FFT lengths; shifts past the plan's side are masked.
-    fh, fw = fft_size(hc + n_img), fft_size(wc + n_img)
+    # Correlation sizes: the least fast FFT lengths free of wrap-around (``corr_size``).
+    fh, fw = corr_size(hc, n_img), corr_size(wc, n_img)
     npts = jnp.maximum(jnp.sum(pok), 1).astype(jnp.float32)
     nfree = jnp.maximum(jnp.sum(fok), 1).astype(jnp.float32)
     F_hit = jnp.fft.rfft2(fields.c_hit, (fh, fw)) * (1.0 / npts).astype(jnp.complex64)

@@ -142,7 +142,9 @@ def corr_size(side: int, n_img: int) -> int:
     ``L >= side + c`` (the negative ones wrap to ``L - c ..``) and ``L >= side + n_img - c - 1``
     (the positive ones), so ``L >= side + n_img // 2`` (rounded up by ``fft_size``), not
     ``side + n_img``: about half the padding. Shifts stored at ``side - c .. side - 1`` put the
-    centre off the plan and are masked (``map_peaks``)."""
+    centre off the plan and are masked (``map_peaks``). On a plan narrower than half the
+    image ``L`` may be less than ``n_img``; the transform then crops the image to ``L``, and
+    the cropped cells ``u >= L >= side + c`` would read the field at ``u + s >= side``: zero."""
     return fft_size(int(side) + int(n_img) // 2)
 
 

@@ -50,6 +50,8 @@ __all__ = [
     "polish",
     "refine_placement",
     "nms",
+    "fft_size",
+    "corr_size",
 ]
 
 

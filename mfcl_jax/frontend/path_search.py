@@ -91,8 +91,8 @@ def map_peaks(sc, th, plan_shape, n_img: int, res: float, origin, k: int):
 
     Args:
         sc: ``(fh, fw)`` score per shift (``corr_size``), stored modulo the map size (shift
-            ``s`` of the centred cloud image against the plan grid; those with ``s >= Hc``
-            read as ``s - fh``).
+            ``s`` of the centred cloud image against the plan grid: a stored index
+            ``i >= Hc`` is the shift ``i - fh``).
         th: the heading; plan_shape: ``(Hc, Wc)`` coarse plan grid; n_img: cloud image side;
         res: coarse cell (m); origin: ``(2,)`` plan grid corner; k: peaks kept (static).
 

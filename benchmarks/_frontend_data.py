@@ -16,7 +16,7 @@ from mfcl_jax.windows.arrays import SubmapBatch
 SCENES = ("three_rooms", "symmetric_bays")
 D_S = (5.0, 6.0, 7.0)
 P_STUDY = 2048  # the study's point bucket (windows.pack of 10 seeds x 3 d_s)
-CHUNK = 32  # the study's driver chunk (study.pipeline.register_all)
+CHUNK = 32  # the study's front-end chunk (study.pipeline.CHUNK)
 OPTS = dict(compiler_options=COMPILER_OPTIONS)  # as every front-end call is compiled
 
 

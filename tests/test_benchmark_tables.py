@@ -14,7 +14,7 @@ def test_run_table_gives_the_metres_of_the_first_commit_the_oracle_and_the_first
     """A hand-made scored table: the metres come from the first COMMIT window, the oracle
     window and the first wrong COMMIT window; the delay in metres and the tables' medians are
     over the identifiable runs committed correctly, as ``median_delay``."""
-    from mfcl_jax.bench.report import family_table, label_strength, run_table
+    from mfcl_jax.report.benchmark import family_table, label_strength, run_table
     from mfcl_jax.score.identifiability import RunLabel
 
     metres = [6.0, 8.0, 10.5, 12.0, 14.2]
@@ -57,7 +57,7 @@ def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors(
     """Windows where the uniqueness test ran unvetoed, binned by ratio (edges at the lanes'
     thresholds, +inf in the last bin); vetoed (-inf), untested (NaN) and unjudged windows and
     other policies are left out; fault rows are counted apart."""
-    from mfcl_jax.bench.calibration import EDGES, ratio_calibration
+    from mfcl_jax.report.calibration import EDGES, ratio_calibration
 
     lane = "ours_unique_a6"
     rows = [  # policy, fault, llr, correct
@@ -85,7 +85,7 @@ def test_ratio_calibration_bins_the_tested_windows_and_counts_the_wrong_anchors(
 def test_fault_level_calibration_counts_each_level_past_each_lanes_threshold():
     """Per (axis, level), nominal first and every fault row last: the judged windows and, per
     lane threshold log(1/alpha), those at or above it and the wrong ones among them."""
-    from mfcl_jax.bench.calibration import fault_level_calibration
+    from mfcl_jax.report.calibration import fault_level_calibration
 
     lane = "ours_unique_a6"
     rows = [  # policy, fault, level, llr, test_correct
@@ -138,7 +138,7 @@ def test_commit_margins_say_how_close_the_right_commits_came_to_the_line():
     """Right COMMIT windows give the largest errors and share of the 1 m / 5 deg line; a window
     past the line counts as wrong and is left out of the maxima; non-COMMIT windows and other
     policies are ignored; fault rows are counted per (run, fault, level)."""
-    from mfcl_jax.bench.calibration import commit_margins
+    from mfcl_jax.report.calibration import commit_margins
 
     rows = [  # name, family, fault, level, policy, state, err_xy, err_yaw_deg
         ("a/s0", "plain", None, None, "ours", "COMMIT", 0.10, 1.0),

@@ -100,3 +100,42 @@ def test_many_refusals_write_nothing(folder, tmp_path, capsys):
     (broken / "odometry.tum").write_text("0 1 2 3\n")
     fails(["localize", east, broken, "--out-dir", out], broken / "odometry.tum", "8 columns")
     assert not out.exists() and _snapshot(folder) == before
+
+
+def test_the_one_batch_path_cuts_groups_as_they_come(folder):
+    """``drive.register`` (the study's, the benchmark's and this command's path): a lazy group
+    is cut only once the group before it is, the front-end's call compiles for the asked
+    capacity before the first cut, and the result is that of cutting, packing and registering
+    by hand."""
+    from mfcl_jax import windows as W
+    from mfcl_jax.drive.register import register
+    from mfcl_jax.frontend.driver import FrontEnd
+    from mfcl_jax.sources import ScanSequence
+    from mfcl_jax.sources.dataset import load_dataset
+
+    data = [load_dataset(folder / n) for n in WALKS]
+    seqs = [ScanSequence(d.times, d.scans, d.odometry, str(d.folder)) for d in data]
+    fe = FrontEnd([data[0].floorplan], chunk=16)
+    p, cap = W.WindowParams(), W.bucket(W.WindowParams().capacity, 256)
+    said = []
+
+    def groups():
+        for s in seqs:
+            said.append("made")
+            yield [(s, p, 0)]
+
+    def cut(group, wins):
+        assert group[0][0] is seqs[len([x for x in said if x == "cut"])]
+        said.append("cut")
+        assert len(fe._compiled) == 1  # the call for ``cap``, compiling since before the cut
+
+    reg = register(groups(), fe, capacity=cap, on_cut=cut)
+    assert said == ["made", "cut", "made", "cut"]
+    assert reg.batch.runs.n_runs == 2 and [len(w) for w in reg.windows] == [
+        len(W.cut(s, p)) for s in seqs
+    ]
+    by_hand = W.pack([(s, W.cut(s, p), 0) for s in seqs], capacity=cap)
+    np.testing.assert_array_equal(reg.batch.submaps.points, by_hand.submaps.points)
+    got = FrontEnd([data[0].floorplan], chunk=16).register(by_hand.submaps, by_hand.building)
+    np.testing.assert_array_equal(reg.cands.pose, got.pose)
+    np.testing.assert_array_equal(reg.cands.score, got.score)

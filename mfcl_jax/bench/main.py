@@ -14,17 +14,18 @@ from pathlib import Path
 
 import pandas as pd
 
-from mfcl_jax.bench import report, suite
-from mfcl_jax.bench.calibration import (
+from mfcl_jax.bench import suite
+from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
+from mfcl_jax.bench.run import collect, decide_and_score
+from mfcl_jax.io.atomic import atomic_write
+from mfcl_jax.report import benchmark as report
+from mfcl_jax.report import jobs
+from mfcl_jax.report.calibration import (
     commit_margins,
     fault_level_calibration,
     grid_calibration,
     ratio_calibration,
 )
-from mfcl_jax.bench.config import FAULTS, PROCEDURAL, BenchmarkConfig, BenchmarkError, validate
-from mfcl_jax.bench.run import collect, decide_and_score
-from mfcl_jax.io.atomic import atomic_write
-from mfcl_jax.report import jobs
 from mfcl_jax.report.tables import write_table
 
 __all__ = ["run_benchmark", "write_tables", "write_margins", "read_runs", "merge"]

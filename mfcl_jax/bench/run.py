@@ -157,23 +157,26 @@ def _storey_label(rec: Recording, lab):
 
 
 def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
-    """Front-end pass, labels and the filter peer for one group of recordings."""
+    """Front-end pass (``drive.register``), labels and the filter peer for one group of
+    recordings."""
+    from mfcl_jax.drive.register import register
+
     wp = W.WindowParams(d_s=cfg.d_s)
-    t0 = time.perf_counter()
-    wins = [W.cut(r.seq, wp) for r in recs]
-    col.tick("windows", time.perf_counter() - t0)
     bidx = col.building_of  # across groups: a plan shared by many runs is one building
-    items = []
-    for r, w in zip(recs, wins, strict=True):
+    for r in recs:
         if id(r.floorplan) not in bidx:  # col.floorplans keeps it alive: ids stay unique
             bidx[id(r.floorplan)] = fe.add(r.floorplan)
             col.floorplans.append(r.floorplan)
-        items.append((r.seq, w, bidx[id(r.floorplan)]))
-    wb = W.pack(items, capacity=wp.capacity)  # one capacity: one front-end compilation
+    t0 = time.perf_counter()
     c0, r0 = fe.compile_s, fe.run_s
-    cands = fe.register(wb.submaps, wb.building)
+    cut_s = []
+    # one capacity for every group: one front-end compilation per plan bucket
+    reg = register([[(r.seq, wp, bidx[id(r.floorplan)]) for r in recs]], fe, capacity=wp.capacity,
+                   on_cut=lambda *_: cut_s.append(time.perf_counter() - t0))  # fmt: skip
+    col.tick("windows", cut_s[0])
     col.tick("front-end compile", fe.compile_s - c0)
     col.tick("front-end run", fe.run_s - r0)
+    wb, wins = reg.batch, reg.windows
     col.n_submaps += int(wb.submaps.n)
     t0 = time.perf_counter()
     col.labels += _labels(recs, wins, cfg, col)
@@ -183,7 +186,7 @@ def _group(recs, cfg, fe, col: Collected, mcl_runner=None) -> None:
         col.mcl.append(mcl_runner(recs, wins, len(col.recordings)))
         col.tick("mcl", time.perf_counter() - t0)
     col.batches.append(W.concat([wb]))
-    col.candidates.append(cands)
+    col.candidates.append(reg.cands)
     col.recordings += [_light(r) for r in recs]
 
 

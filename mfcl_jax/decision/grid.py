@@ -40,7 +40,7 @@ value of any cell outside its neighbourhood (farther than ``near_xy`` or ``near_
 the line a commit is judged by). A wide peak (a path too short to tell a 5 deg turn apart)
 has its own edge outside the line, so the margin waits until the path narrows it. The margin
 is in nats of the pooled model, not of ``path_llr``'s: its commit threshold is calibrated on
-the benchmark's windows (``bench.calibration``), not read off Wald's bound.
+the benchmark's windows (``report.calibration``), not read off Wald's bound.
 """
 
 from __future__ import annotations

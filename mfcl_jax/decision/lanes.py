@@ -21,7 +21,7 @@ of them from one shared history:
 * ``ours_grid``: ``ours`` that also commits where the evidence grid's leader (``grid``:
   every placement's accumulated log-likelihood, grown one window at a time) leads every
   other hill by ``GRID_MARGIN`` nats (``early``); ``ours_grid_off``: the grid kept and its
-  margin reported, never committed on (what ``bench.calibration.grid_calibration`` reads).
+  margin reported, never committed on (what ``report.calibration.grid_calibration`` reads).
 
 A lane reads one *mode* of the shared core: the gate on or off and one symmetry set of the
 maps. The baselines (``baselines``) are lanes too, one per threshold set.
@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 # the evidence grid's commit margin (nats of its pooled model, ``grid``), calibrated on the
-# benchmark's windows (``bench.calibration``)
+# benchmark's windows (``report.calibration``)
 GRID_MARGIN = 4.0
 GRID_OFF = 1e9  # a margin no grid reaches: the lane records the grid's margin, never commits on it
 # name: (use_gate, use_probe, use_cert, b_min, delta_min, symmetry set, uniqueness alpha,

@@ -5,8 +5,8 @@ raster side in steps of 256 cells and the rival search's image), so that a plan 
 the largest plan of its class, never to the largest of the call; the smallest class runs
 first. Within a class the recordings are decided in chunks of one size (the last padded to
 it: one compilation per class and chunk size): a chunk's windows are cut together
-(``windows.cut_many``: one LiDAR odometry per recording), registered by the class's
-``FrontEnd`` (the plan features of the chunk's plans, dropped after it) and decided by the
+and registered by the class's ``FrontEnd`` (``drive.register``, the study's and the
+benchmark's path too; the plan features of the chunk's plans dropped after it) and decided by the
 one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan(layer.update)``, the
 ``update`` a robot calls). The capacities are sized once, from every recording's input
 odometry, before any work. Results are handed out chunk by chunk, as they are decided.
@@ -177,25 +177,22 @@ class _Class:
         """``(index, BatchResult)`` of the recordings ``idx`` (padded to ``size`` rows)."""
         from mfcl_jax.decision.inputs import run_inputs
         from mfcl_jax.decision.runs import decide_runs
+        from mfcl_jax.drive.register import register
 
         params = self.params
         index = {id(fp): b for b, fp in enumerate(self.plans)}
-        wins = W.cut_many(((seqs[i], params.window) for i in idx), rows=size)
-        items = [(seqs[i], w, index[id(floorplans[i])])
-                 for i, w in zip(idx, wins, strict=True) if len(w)]  # fmt: skip
+        group = [(seqs[i], params.window, index[id(floorplans[i])]) for i in idx]
+        reg = register([group], self.fe, capacity=W.bucket(params.window.capacity, 256),
+                       rows=size, keep=True)  # fmt: skip
+        self.fe.release()  # the chunk's plan features
+        batch, cands = reg.batch, reg.cands
         done = {i: BatchResult([], []) for i in idx}
-        if items:
-            batch = W.pack(items, capacity=W.bucket(params.window.capacity, 256))
-            cands = self.fe.register(batch.submaps, batch.building, keep=True)
-            self.fe.release()  # the chunk's plan features
+        if batch.submaps.n:
             dec, _ = decide_runs(run_inputs(batch, cands, **self.steps), batch.run_building,
                                  self.plans, self.p, self.lanes, self.spec, min_runs=size,
                                  buildings=self.buildings, **self.floors)  # fmt: skip
             valid = np.asarray(cands.mask).sum(1)
-            r = 0
-            for i, w in zip(idx, wins, strict=True):
-                if not len(w):
-                    continue
+            for r, (i, w) in enumerate(zip(idx, reg.windows, strict=True)):
                 res, offset, st = done[i], floorplans[i].offset, floorplans[i].storeys
                 for k in range(len(w)):
                     d = jax.tree.map(lambda a, r=r, k=k: a[r, k, 0], dec)
@@ -205,5 +202,4 @@ class _Class:
                     sub = int(batch.runs.submap[r, k])
                     thin = f" rethinned voxel={w.voxel[k]:.2f}" if W.rethinned(w)[k] else ""
                     res.details.append(f"pts={len(w.points[k])}{thin} cands={int(valid[sub])}")
-                r += 1
         return [(i, done[i]) for i in idx]

@@ -86,7 +86,7 @@ def commit_distance_figure(runs: pd.DataFrame, policies=DISTANCE_POLICIES):
     the first wrong COMMIT window, ``false_m``) against the metres travelled; nominal runs at
     the default thresholds, for the ``DISTANCE_POLICIES`` among ``policies`` (all of
     ``policies`` when none is). The curves end at the coverage and the false-commit rate."""
-    from mfcl_jax.bench.report import nominal
+    from mfcl_jax.report.benchmark import nominal
 
     nom = nominal(runs)
     present = [p for p in policies if p in set(nom["policy"])]

@@ -21,6 +21,7 @@ from mfcl_jax import windows as W
 from mfcl_jax.decision import frame as decision_frame
 from mfcl_jax.decision.lanes import COUNT_VARIANTS, OURS_VARIANTS
 from mfcl_jax.decision.params import DecisionParams
+from mfcl_jax.drive.register import register
 from mfcl_jax.frontend.candidates import Candidates
 from mfcl_jax.frontend.driver import FrontEnd
 from mfcl_jax.score import pose_at, score_batch
@@ -28,8 +29,8 @@ from mfcl_jax.sim import SimParams
 from mfcl_jax.sim.scenes import get_scene
 from mfcl_jax.sources.simulated import simulate
 
-__all__ = ["Timings", "StudyData", "frontend", "prepare", "register_all", "compile_decisions",
-           "decide", "score", "log", "CHUNK"]  # fmt: skip
+__all__ = ["Timings", "StudyData", "frontend", "prepare", "compile_decisions", "decide", "score",
+           "log", "CHUNK"]  # fmt: skip
 
 CHUNK = 32  # submaps per front-end call
 
@@ -94,65 +95,68 @@ def frontend(scenes, params) -> FrontEnd:
     return FrontEnd([s.floorplan for s in scenes], params, chunk=CHUNK)
 
 
-def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, progress=True, window=None,
-            fe: FrontEnd | None = None):  # fmt: skip
-    """Simulates every (scene, trajectory, seed), cuts windows for every ``d_s``.
+def prepare(scenes, d_s, seeds, sim: SimParams, timings: Timings, fe: FrontEnd, progress=True,
+            window=None, on_packed=None) -> tuple[StudyData, Candidates]:  # fmt: skip
+    """Simulates every (scene, trajectory, seed), cuts windows for every ``d_s`` and registers
+    them with ``fe`` (``frontend``) through the one batch path (``drive.register``).
 
     Runs are ordered scene, then trajectory, then ``d_s``, then seed. ``scenes``: names or
-    ``Scene``s. ``fe``: the ``frontend`` that will register the windows; once the first
-    scene's windows are cut, it starts compiling its call for their point capacity in the
-    background (``FrontEnd.prepare``), while the other scenes are simulated.
+    ``Scene``s. The scenes are simulated one by one as the batch path asks for them, so the
+    front-end's call compiles (for the first scene's point capacity) while the later scenes
+    are simulated. ``on_packed(data)``: called with the ``StudyData`` once every window is
+    packed, before the front-end runs (``drive.register``).
     """
     window = window or W.WindowParams()
-    items, recs, rows, objs = [], [], [], []
-    for b, scene in enumerate(scenes):
-        scene = get_scene(scene) if isinstance(scene, str) else scene
-        name = scene.name
-        objs.append(scene)
-        t0 = time.perf_counter()
-        sims = simulate(scene, seeds=seeds, params=sim)
-        by = {(r.meta["trajectory"], r.meta["seed"]): r for r in sims}
-        todo = [(by[(traj, s)], traj, float(ds), s)
-                for traj in scene.trajectories for ds in d_s for s in seeds]  # fmt: skip
-        wins = W.cut_many(
-            (rec.seq, W.WindowParams(**{**window.__dict__, "d_s": ds})) for rec, _, ds, _ in todo
-        )
-        n0 = len(items)
-        for (rec, traj, ds, s), w in zip(todo, wins, strict=True):
-            rows.append(
-                dict(
-                    scene=name,
-                    trajectory=traj,
-                    d_s=ds,
-                    seed=int(s),
-                    run=len(items),
-                    n_scans=len(rec.seq),
-                    n_windows=len(w),
-                    length_m=rec.meta["length_m"],
-                )
-            )
-            items.append((rec.seq, w, b))
-            recs.append(rec)
-        if fe is not None and b == 0:  # ``W.pack``'s capacity, unless a later scene is fuller
-            most = max((len(p) for w in wins for p in w.points), default=0)
-            fe.prepare(W.bucket(most))
-        dt = time.perf_counter() - t0
-        n_sub = sum(len(w) for _, w, _ in items[n0:])
-        timings.add(f"simulate {name}", 0.0, dt, f"{len(items) - n0} runs, {n_sub} submaps")
-        log(f"[sim] {name}: {len(items) - n0} runs, {n_sub} submaps in {dt:.1f} s", progress)
-    return StudyData(W.pack(items), recs, pd.DataFrame(rows), objs)
+    recs, rows, objs = [], [], []
+
+    def groups():
+        for b, scene in enumerate(scenes):
+            scene = get_scene(scene) if isinstance(scene, str) else scene
+            objs.append(scene)
+            t0[0] = time.perf_counter()
+            sims = simulate(scene, seeds=seeds, params=sim)
+            by = {(r.meta["trajectory"], r.meta["seed"]): r for r in sims}
+            todo = [(by[(traj, s)], traj, float(ds), s)
+                    for traj in scene.trajectories for ds in d_s for s in seeds]  # fmt: skip
+            for rec, traj, ds, s in todo:
+                rows.append(dict(scene=scene.name, trajectory=traj, d_s=ds, seed=int(s),
+                                 run=len(recs), n_scans=len(rec.seq),
+                                 length_m=rec.meta["length_m"]))  # fmt: skip
+                recs.append(rec)
+            yield [(rec.seq, W.WindowParams(**{**window.__dict__, "d_s": ds}), b)
+                   for rec, _, ds, _ in todo]  # fmt: skip
+
+    def cut(group, wins) -> None:  # after each scene: its windows, its time
+        name = objs[-1].name
+        n0 = len(rows) - len(group)
+        for row, w in zip(rows[n0:], wins, strict=True):
+            row["n_windows"] = len(w)
+        dt = time.perf_counter() - t0[0]
+        n_sub = sum(len(w) for w in wins)
+        timings.add(f"simulate {name}", 0.0, dt, f"{len(group)} runs, {n_sub} submaps")
+        log(f"[sim] {name}: {len(group)} runs, {n_sub} submaps in {dt:.1f} s", progress)
+
+    t0 = [0.0]
+    c0, r0 = fe.compile_s, fe.run_s
+
+    def packed(batch) -> None:
+        t0[0] = time.perf_counter()  # the front-end's stage starts
+        if on_packed is not None:
+            on_packed(StudyData(batch, recs, _runs(rows), objs))
+
+    reg = register(groups(), fe, on_cut=cut, on_packed=packed)
+    n = reg.batch.submaps.n
+    per = 1e3 * (fe.run_s - r0) / max(n, 1)
+    wall = time.perf_counter() - t0[0]
+    comp = fe.compile_s - c0
+    timings.add("front-end", comp, wall - comp, f"{n} submaps, {per:.1f} ms/submap")
+    log(f"[front-end] compile {comp:.1f} s, {per:.1f} ms/submap", progress)
+    return StudyData(reg.batch, recs, _runs(rows), objs), reg.cands
 
 
-def register_all(data: StudyData, fe: FrontEnd, timings: Timings, progress=True) -> Candidates:
-    """Runs the front-end ``fe`` (``frontend``) on every submap of the study."""
-    t0 = time.perf_counter()
-    cands = fe.register(data.batch.submaps, data.batch.building)
-    n = data.batch.submaps.n
-    per = 1e3 * fe.run_s / max(n, 1)
-    wall = time.perf_counter() - t0
-    timings.add("front-end", fe.compile_s, wall - fe.compile_s, f"{n} submaps, {per:.1f} ms/submap")
-    log(f"[front-end] compile {fe.compile_s:.1f} s, {per:.1f} ms/submap", progress)
-    return cands
+def _runs(rows) -> pd.DataFrame:
+    cols = ["scene", "trajectory", "d_s", "seed", "run", "n_scans", "n_windows", "length_m"]
+    return pd.DataFrame(rows)[cols]
 
 
 def compile_decisions(data: StudyData, cands: Candidates, params: DecisionParams, batch=None,

@@ -15,8 +15,9 @@ from mfcl_jax.decision.inputs import run_inputs
 from mfcl_jax.decision.lanes import STRICT_IOU
 from mfcl_jax.frontend.candidates import no_candidates
 from mfcl_jax.report import jobs, tables
+from mfcl_jax.report import study as report
 from mfcl_jax.sim.scenes import get_scene
-from mfcl_jax.study import density, pipeline, report
+from mfcl_jax.study import density, pipeline
 
 __all__ = ["run_study", "merge", "MergeError"]
 
@@ -95,17 +96,19 @@ def run_study(cfg: StudyConfig, write_raw: bool = True) -> dict:
     t_start = time.perf_counter()
     seeds = list(range(cfg.seed0, cfg.seed0 + cfg.seeds))
     # The front-end's call compiles in the background while the later scenes are simulated
-    # (``pipeline.prepare``), the decision programs while the front-end registers.
+    # (``pipeline.prepare``); the decision programs need the candidates' shapes only, so they
+    # compile in the background while the front-end registers, and the decisions wait for them.
     scenes = [get_scene(name) for name in cfg.scenes]
     fe = pipeline.frontend(scenes, cfg.frontend)
-    data = pipeline.prepare(scenes, cfg.d_s, seeds, cfg.sim, tm, cfg.progress, cfg.window, fe)
-    # The decision programs need the candidates' shapes only: they compile in the background
-    # while the front-end registers (``background``), and the decisions wait for them.
-    shaped = no_candidates(data.batch.submaps.n, cfg.frontend.J)
-    pipeline.compile_decisions(data, shaped, cfg.decision)
-    if "three_rooms" in cfg.scenes:
-        _compile_density(data, shaped, cfg)
-    cands = pipeline.register_all(data, fe, tm, cfg.progress)
+
+    def compile_ahead(data) -> None:
+        shaped = no_candidates(data.batch.submaps.n, cfg.frontend.J)
+        pipeline.compile_decisions(data, shaped, cfg.decision)
+        if "three_rooms" in cfg.scenes:
+            _compile_density(data, shaped, cfg)
+
+    data, cands = pipeline.prepare(scenes, cfg.d_s, seeds, cfg.sim, tm, fe, cfg.progress,
+                                   cfg.window, on_packed=compile_ahead)  # fmt: skip
     windows = pipeline.decide(data, cands, cfg.decision, tm, progress=cfg.progress)
     scored = pipeline.score(data, windows)
     dens = _density(data, cands, scored, cfg, tm) if "three_rooms" in cfg.scenes else None

@@ -11,12 +11,12 @@ Per run and policy (threshold set ``DEFAULT_SET`` unless stated):
 * delay: first commit window minus the oracle window (identifiable runs committed correctly);
 * distance (``commit_m``, ``oracle_m``, ``false_m``, ``delay_m``): metres travelled by the end
   of the first commit window, of the oracle window and of the first wrong COMMIT window, by the
-  run's own input odometry over its keyframes from its first keyframe (``run.window_metres``:
+  run's own input odometry over its keyframes from its first keyframe (``bench.run.window_metres``:
   the distance the windows are cut by; an odometry quantity). A run split by an odometry
   restart counts from the run's start, the jump itself counting nothing. ``delay_m`` is
   ``commit_m - oracle_m`` for the runs ``delay`` is given for; the tables' ``median_commit_m``
   and ``median_delay_m`` are medians over the same runs as ``median_delay``;
-The margins of the right commits and the ratio calibration: ``bench.calibration``.
+The margins of the right commits and the ratio calibration: ``report.calibration``.
 """
 
 from __future__ import annotations

@@ -86,7 +86,7 @@ def main() -> None:
             print(rows[-1], flush=True)
     table = pd.DataFrame(rows)
     head = (f"One run of `benchmarks/bound.py --repeats {args.repeats}`, "
-            f"{time.strftime('%Y-%m-%d %H:%M')}; first call (compilation included) and the "
+            f"first call (compilation included) and the "
             f"median of {args.repeats} warm calls; load average "
             f"{' '.join(f'{x:.2f}' for x in os.getloadavg())} at the end.")  # fmt: skip
     out = Path("results")

@@ -27,7 +27,6 @@ Usage: ``python benchmarks/compile.py [--repeats 3]`` (about 4 minutes on 2 core
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import pathlib
@@ -140,7 +139,7 @@ def main(argv=None) -> int:
     med["lower_s"], med["compile_s"] = med["lower_s"].round(1), med["compile_s"].round(1)
     head = (
         f"One run of `benchmarks/compile.py --repeats {a.repeats}`, "
-        f"{datetime.datetime.now():%Y-%m-%d %H:%M}; 4 runs x 16 windows x 32 candidates, cold "
+        f"4 runs x 16 windows x 32 candidates, cold "
         f"(cache off), each variant in a fresh process, medians of {a.repeats}, the variants "
         f"alternating; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} at the "
         f"end. lower = tracing and lowering (Python), compile = XLA; stablehlo_ops = "

@@ -31,7 +31,6 @@ Usage: ``python benchmarks/search.py [--old REF] [--repeats 7]`` (about 3 minute
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import pathlib
@@ -184,7 +183,7 @@ def main(argv=None) -> int:
     agree = df.groupby("kernel")["agree"].all()
     head = (
         f"Old code ({a.old}) vs new code (the working tree), one run of `benchmarks/"
-        f"search.py --repeats {a.repeats}`, {datetime.datetime.now():%Y-%m-%d %H:%M}; "
+        f"search.py --repeats {a.repeats}`; "
         f"medians of {a.repeats} calls after one warm-up, the sides alternating building by "
         f"building; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} at the "
         f"end; results agree to 1e-4: "

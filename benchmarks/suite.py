@@ -28,7 +28,6 @@ Usage: ``python benchmarks/suite.py [pytest args]`` (one run of the suite: 6-7 m
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import pathlib
@@ -68,7 +67,7 @@ def _eager(progs):
     return one_op & (per["seconds"] / per["n"].clip(lower=1) < EAGER_S)
 
 
-def report(tests, progs, wall_s: float, stamp: str):
+def report(tests, progs, wall_s: float):
     for c in ("wall_s", "compile_s", "trace_s", "lower_s", "compile_n"):
         if c not in tests:
             tests[c] = 0.0
@@ -96,7 +95,7 @@ def report(tests, progs, wall_s: float, stamp: str):
     workers = tests.groupby("worker")["wall_s"].sum()
     balance = ", ".join(f"{w} {v:.0f} s" for w, v in workers.items())
     head = (
-        f"One run of `benchmarks/suite.py`, {stamp}: `python -m pytest` (two workers, a fresh "
+        f"One run of `benchmarks/suite.py`: `python -m pytest` (two workers, a fresh "
         f"compilation cache), {wall_s:.0f} s of wall time; the tests' seconds summed over both "
         f"workers: {total['wall_s']:.0f} s ({balance}), of which in-process compilation "
         f"{comp:.0f} s ({100 * comp / max(total['wall_s'], 1e-9):.0f} %: XLA "
@@ -157,8 +156,7 @@ def main(argv=None) -> int:
             print(f"suite: pytest exited {r.returncode}; timings below cover what ran",
                   file=sys.stderr)  # fmt: skip
         tests, progs = _frames(pathlib.Path(tmp))
-    stamp = datetime.datetime.now().strftime("%Y-%m-%d %H:%M")
-    per_file, per_prog, md = report(tests, progs, wall, stamp)
+    per_file, per_prog, md = report(tests, progs, wall)
     RESULTS.mkdir(exist_ok=True)
     per_file.to_csv(RESULTS / "bench_suite.csv")
     per_prog.to_csv(RESULTS / "bench_suite_programs.csv")

@@ -98,7 +98,6 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)  # also when started in background
     signal.signal(signal.SIGTERM, _interrupt)  # ``kill PID``: stop as Ctrl-C does
 
-    started = datetime.datetime.now()
     load0, jobs0 = load(), other_jobs()
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
                           capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
@@ -147,8 +146,7 @@ def main(argv=None) -> int:
         f"Old code ({a.old}, {old_sha}) vs new code (HEAD {head}"
         f"{', working tree modified' if dirty else ''}), one run of `benchmarks/versions.py "
         f"--cases {','.join(cases)} --repeats {a.repeats}"
-        f"{'' if a.datasets == 20 else f' --datasets {a.datasets}'}`, "
-        f"{started:%Y-%m-%d %H:%M}; medians "
+        f"{'' if a.datasets == 20 else f' --datasets {a.datasets}'}`; medians "
         f"of the runs (cold: 1, warm: {a.repeats}); {os.cpu_count()} cores; load average "
         f"(1/5/15 min) {load0} at start, {load1} at end; {busy} ({len(jobs0)} at start, "
         f"{len(jobs1)} at end). Wall time from process start to exit; cold = fresh empty "

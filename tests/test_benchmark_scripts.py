@@ -89,7 +89,7 @@ def test_suite_report_charges_compilation_to_files_and_names_the_eager_operation
            [{"test": b, "program": "jit(add)", "seconds": 0.15, "n": 1}])  # fmt: skip
     worker("main", {a: {"wall_s": 99.0}}, [])  # the xdist controller's copy: not counted
     tests, progs = suite._frames(tmp_path)
-    per_file, per_prog, md = suite.report(tests, progs, wall_s=12.0, stamp="now")
+    per_file, per_prog, md = suite.report(tests, progs, wall_s=12.0)
     assert per_file.loc["test_a.py", "wall_s"] == 12.0 and per_file.index[0] == "test_a.py"
     assert per_file.loc["test_b.py", "compile_s"] == 1.0
     assert "16 s (gw0 10 s, gw1 6 s)" in md  # the controller's copy (main) left out

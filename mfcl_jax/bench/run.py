@@ -1,7 +1,8 @@
 """The benchmark pipeline: recordings -> windows -> front-end -> labels -> decisions -> scores.
 
-Runs are processed group by group (a family, or a fault level): a group's scans and submap
-points live only while its front-end pass and its labels are computed; what is kept (odometry,
+Runs are processed group by group (a family, or a fault axis): a group is cut, packed and
+registered by the one batch path (``drive.register``), and its scans and submap points live
+only while its front-end pass, its labels and the particle filter run; what is kept (odometry,
 windows, candidates, labels, ground truth) is small. Then every run of every group is decided
 in one compiled call (all policies, all threshold sets of the risk-coverage sweep) and scored
 by the one scorer. Ground truth enters only through ``mfcl_jax.score``.

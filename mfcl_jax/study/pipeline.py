@@ -1,8 +1,8 @@
 """The study pipeline on the one data path: simulate -> windows -> register -> decide -> score.
 
 Scenes are simulated into ``Recording``s (``sources.simulated``), cut into windows for every
-``d_s`` (``windows``), registered by the one front-end driver (``frontend.driver.FrontEnd``),
-decided by the one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan`` of
+``d_s``, packed and registered by the one batch path (``drive.register``, with the one
+front-end driver ``frontend.driver.FrontEnd``), decided by the one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan`` of
 ``layer.update``) and scored by the one scorer
 (``score.score_batch``). Ground truth enters only in ``score``.
 """

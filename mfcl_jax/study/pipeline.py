@@ -2,9 +2,9 @@
 
 Scenes are simulated into ``Recording``s (``sources.simulated``), cut into windows for every
 ``d_s``, packed and registered by the one batch path (``drive.register``, with the one
-front-end driver ``frontend.driver.FrontEnd``), decided by the one decision layer (``decision.runs``: ``vmap`` over runs of ``lax.scan`` of
-``layer.update``) and scored by the one scorer
-(``score.score_batch``). Ground truth enters only in ``score``.
+front-end driver ``frontend.driver.FrontEnd``), decided by the one decision layer
+(``decision.runs``: ``vmap`` over runs of ``lax.scan`` of ``layer.update``) and scored by the
+one scorer (``score.score_batch``). Ground truth enters only in ``score``.
 """
 
 from __future__ import annotations
